@@ -1,0 +1,15 @@
+"""Algorithms behind the SLAM course workbook.
+
+One module per course concept, so a student can guess where a thing lives:
+
+- ``helpers.rotation``          rotation matrices and roll-pitch-yaw angles
+- ``helpers.gaussian``          the square-root Gaussian (P = SᵀS, S upper-triangular)
+- ``helpers.camera``            the calibrated camera model (12-coefficient OpenCV distortion)
+- ``helpers.state_slam``        the SLAM state and the predicted feature bundle
+- ``helpers.association``       compatibility tests and data-association algorithms
+- ``helpers.graph``             the g2o-style sparse graph optimiser
+- ``helpers.drivebot``          the DriveBot simulator and SLAM system of the coursework
+- ``helpers.figures``           the one plotting style and ``save(fig, name)``
+"""
+
+__all__ = []

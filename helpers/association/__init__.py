@@ -1,0 +1,1 @@
+"""Data association: compatibility tests and association algorithms."""
