@@ -1,0 +1,146 @@
+"""Point features (corners) for data association — Lab 8 task 3a.
+
+A corner is a pixel whose neighbourhood has strong intensity gradients in two directions. With the image
+gradient g = (I_x, I_y) and a window w (a box of ``block_size`` × ``block_size`` pixels) the structure
+tensor is
+
+    M = Σ_w [[I_x², I_x I_y], [I_x I_y, I_y²]]      with eigenvalues λ1 ≥ λ2 ≥ 0.
+
+Two classic corner responses (both computed by OpenCV, vectorised over the whole image):
+
+    Shi–Tomasi (minimum eigenvalue):  R = λ2                            (cv2.cornerMinEigenVal)
+    Harris:                           R = det M − k (tr M)² = λ1λ2 − k(λ1 + λ2)²   (cv2.cornerHarris)
+
+A feature is a pixel whose response exceeds ``threshold × max(R)`` (a relative quality level, as in
+cv2.goodFeaturesToTrack). Optionally only local maxima within a (2·nms_radius + 1)² window are kept
+(non-maximum suppression; the lab's detector had none, so ``nms_radius=0`` is the default). Features are
+returned sorted by **descending score**, ties broken by raster order (row, then column), and capped at
+``max_features`` (the lab's ``maxNumFeatures = 10000``). Coordinates are integer pixels, OpenCV
+convention: x to the right, y down, origin at the top-left pixel.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+__all__ = ["Features", "corner_response", "detect_features", "METHODS"]
+
+METHODS = ("shi-tomasi", "harris")
+
+
+@dataclass(frozen=True)
+class Features:
+    """Detected point features, sorted by descending ``score``.
+
+    ``score``, ``x``, ``y`` are arrays of equal length m; ``Y`` is the lab's 2 × m measurement matrix
+    (column i = (x_i, y_i) as floats).
+    """
+
+    score: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    method: str = "shi-tomasi"
+
+    def __len__(self) -> int:
+        return int(self.score.shape[0])
+
+    @property
+    def Y(self) -> np.ndarray:
+        """Features as the 2 × m matrix Y = [y_1 … y_m] of pixel coordinates (float)."""
+        return np.vstack([self.x, self.y]).astype(float)
+
+    def __repr__(self) -> str:
+        return f"Features(m={len(self)}, method={self.method!r})"
+
+
+def _as_gray_float(image) -> np.ndarray:
+    if not isinstance(image, np.ndarray):
+        raise ValueError(f"image must be a numpy array, got {type(image).__name__}")
+    if image.ndim == 3 and image.shape[2] in (3, 4):
+        if image.dtype != np.uint8:
+            raise ValueError(f"a colour image must be uint8 BGR(A), got dtype {image.dtype}")
+        code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
+        image = cv2.cvtColor(image, code)
+    if image.ndim != 2:
+        raise ValueError(f"image must be 2-D gray (H, W) or BGR (H, W, 3), got shape {image.shape}")
+    if image.shape[0] < 3 or image.shape[1] < 3:
+        raise ValueError(f"image must be at least 3 × 3 pixels, got shape {image.shape}")
+    if image.dtype == np.uint8:
+        return image.astype(np.float32) / 255.0
+    if image.dtype in (np.float32, np.float64):
+        if not np.all(np.isfinite(image)):
+            raise ValueError("image must not contain NaN or inf")
+        return image.astype(np.float32)
+    raise ValueError(f"image dtype must be uint8, float32 or float64, got {image.dtype}")
+
+
+def corner_response(image, method: str = "shi-tomasi", block_size: int = 5, aperture_size: int = 3,
+                    harris_k: float = 0.04) -> np.ndarray:
+    """Corner response map R (float32, same height × width as ``image``), computed by OpenCV.
+
+    ``image`` is uint8 (scaled to [0, 1]) or float gray, or uint8 BGR. ``method`` is ``"shi-tomasi"``
+    (R = λ2, the smaller eigenvalue of the structure tensor) or ``"harris"`` (R = det M − k (tr M)²).
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if not isinstance(block_size, (int, np.integer)) or block_size < 2:
+        raise ValueError(f"block_size must be an integer ≥ 2, got {block_size!r}")
+    if aperture_size not in (1, 3, 5, 7):
+        raise ValueError(f"aperture_size must be 1, 3, 5 or 7, got {aperture_size!r}")
+    if not (np.isfinite(harris_k) and 0.0 < harris_k < 0.25):
+        raise ValueError(f"harris_k must lie in (0, 0.25), got {harris_k!r}")
+    gray = _as_gray_float(image)
+    if method == "shi-tomasi":
+        return cv2.cornerMinEigenVal(gray, int(block_size), ksize=int(aperture_size))
+    return cv2.cornerHarris(gray, int(block_size), int(aperture_size), float(harris_k))
+
+
+def detect_features(image, max_features: int = 10000, method: str = "shi-tomasi", threshold: float = 0.01,
+                    block_size: int = 5, aperture_size: int = 3, harris_k: float = 0.04,
+                    nms_radius: int = 0, border: int = 4) -> Features:
+    """Detect corner features: pixels with response R > threshold · max(R), strongest first.
+
+    Parameters
+    ----------
+    image : (H, W) uint8/float gray or (H, W, 3) uint8 BGR image.
+    max_features : keep at most this many features (the strongest ones); ≥ 1.
+    method : ``"shi-tomasi"`` (minimum eigenvalue) or ``"harris"``.
+    threshold : relative quality level in [0, 1): a pixel qualifies when R > threshold · max(R)
+        (and R > 0). 0 keeps every pixel with positive response.
+    block_size, aperture_size, harris_k : passed to OpenCV (window size, Sobel size, Harris k).
+    nms_radius : 0 for none (the lab); r > 0 keeps only pixels that are the maximum of their
+        (2r + 1) × (2r + 1) neighbourhood (ties on a plateau all survive).
+    border : ignore this many pixels along the image border (the response there is unreliable).
+
+    Returns
+    -------
+    Features with ``score``, ``x``, ``y`` (int) sorted by descending score (ties in raster order).
+    An image without corners (e.g. constant) gives an empty ``Features`` (m = 0), not an error.
+    """
+    if isinstance(max_features, bool) or not isinstance(max_features, (int, np.integer)) or max_features < 1:
+        raise ValueError(f"max_features must be a positive integer, got {max_features!r}")
+    if not (isinstance(threshold, (int, float, np.floating)) and np.isfinite(threshold) and 0.0 <= threshold < 1.0):
+        raise ValueError(f"threshold must be a relative level in [0, 1), got {threshold!r}")
+    if not isinstance(nms_radius, (int, np.integer)) or nms_radius < 0:
+        raise ValueError(f"nms_radius must be a non-negative integer, got {nms_radius!r}")
+    if not isinstance(border, (int, np.integer)) or border < 0:
+        raise ValueError(f"border must be a non-negative integer, got {border!r}")
+    R = corner_response(image, method, block_size, aperture_size, harris_k)
+    h, w = R.shape
+    if 2 * border >= min(h, w):
+        raise ValueError(f"border={border} leaves no pixels in an image of shape {(h, w)}")
+    mask = np.zeros((h, w), dtype=bool)
+    mask[border:h - border, border:w - border] = True
+    rmax = float(R[mask].max())
+    if not rmax > 0.0:
+        return Features(np.zeros(0, np.float32), np.zeros(0, int), np.zeros(0, int), method)
+    mask &= R > max(threshold * rmax, 0.0)
+    if nms_radius > 0:
+        kernel = np.ones((2 * nms_radius + 1, 2 * nms_radius + 1), np.uint8)
+        mask &= R >= cv2.dilate(R, kernel)
+    ys, xs = np.nonzero(mask)                      # raster order
+    score = R[ys, xs]
+    order = np.argsort(-score, kind="stable")[:max_features]
+    return Features(score[order], xs[order].astype(int), ys[order].astype(int), method)
