@@ -1,0 +1,246 @@
+"""Surprisal nearest neighbour (SNN) data association — Lab 8 §3 (spec §7).
+
+Given the predicted feature-bundle density p(h) = N(μ, P), P = SᵀS, of n selected landmarks (landmark k of
+the selection in rows 2k, 2k+1) and m measured features Y = [y_0 … y_{m−1}] ∈ R^{2×m}, SNN builds an
+association idx (idx[k] = feature column or −1) greedily, landmark by landmark in selection order:
+
+    s(idx) = n_U·s_U − log N(y_A; μ_A, P_A)          (total surprisal, s_U = log W + log H)
+
+1. Start from "nothing associated": s = n·s_U.
+2. For landmark j = 0 … n−1 (never revisited): among the features not taken by an earlier landmark and
+   individually compatible with j (3σ gate, wᵀw ≤ χ²₂(c), c = 2Φ(n_σ) − 1), pick the one whose pairing
+   changes the surprisal least, Δs = s(idx ∪ {j ↦ i}) − s(idx); ties go to the lowest feature index.
+   Keep it iff Δs ≤ 0 (the null hypothesis "j unassociated" has Δs = 0 and wins only when strictly
+   better). With ``enforce_joint_compatibility`` a candidate must also pass the joint gate
+   wᵀw ≤ χ²_{2(n_A+1)}(c) on the enlarged association.
+
+Fast evaluation (mathematically identical to calling ``joint_compatibility`` per candidate). Order the
+associated landmarks A first and landmark j last, and factor the marginal of the bundle over those rows
+by one QR, S[:, rows] = Q [[R11, R12], [0, R22]]. Then
+
+    log N(y_A, y; μ, P) = log N(y_A; μ_A, R11ᵀR11) + log N(y; μ_{j|A}, R22ᵀR22),
+    μ_{j|A} = μ_j + R12ᵀ w_A,   R11ᵀ w_A = y_A − μ_A,
+
+so for every candidate feature y_i at once (v_i solves R22ᵀ v_i = y_i − μ_{j|A})
+
+    Δs_i = −s_U + log 2π + log|det R22| + ½ v_iᵀv_i,
+    joint wᵀw = w_Aᵀw_A + v_iᵀv_i.
+
+The individual gate uses the n 2×2 marginals (one batched QR) and is evaluated for all m features and all
+n landmarks in one vectorised expression. ``snn_reference`` is the literal per-pair loop of the lab
+(individual_compatibility / joint_compatibility for every pair) and serves as the oracle and the naive
+benchmark.
+"""
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+from scipy import linalg
+
+from helpers.gaussian import chi2inv, confidence_level
+
+__all__ = ["snn", "snn_reference", "individual_sq_mahalanobis", "association_surprisal"]
+
+_LOG_2PI = float(np.log(2.0 * np.pi))
+
+
+# ----------------------------------------------------------------------------------------------------
+# validation
+# ----------------------------------------------------------------------------------------------------
+def _check_density(density):
+    if not (hasattr(density, "mean") and hasattr(density, "sqrt_cov")):
+        raise ValueError(f"density must be a helpers.gaussian.Gaussian, got {type(density).__name__}")
+    mu = np.asarray(density.mean, dtype=float)
+    S = np.asarray(density.sqrt_cov, dtype=float)
+    if mu.ndim != 1 or mu.size == 0 or mu.size % 2:
+        raise ValueError(f"density must have an even, positive size 2n (one pixel pair per landmark), got {mu.size}")
+    return mu, S
+
+
+def _check_Y(Y):
+    Y = np.asarray(Y, dtype=float)
+    if Y.ndim != 2 or Y.shape[0] != 2:
+        raise ValueError(f"Y must be a 2 × m array of feature pixel coordinates, got shape {Y.shape}")
+    if not np.all(np.isfinite(Y)):
+        raise ValueError("Y must be finite (no NaN/inf)")
+    return Y
+
+
+def _check_sU(sU):
+    if isinstance(sU, bool) or not isinstance(sU, numbers.Real) or not np.isfinite(sU):
+        raise ValueError(f"sU must be a finite number (log of the image area), got {sU!r}")
+    return float(sU)
+
+
+def _check_flag(flag):
+    if not isinstance(flag, (bool, np.bool_)):
+        raise ValueError(f"enforce_joint_compatibility must be a bool, got {flag!r}")
+    return bool(flag)
+
+
+def _gate(n_sigma, dof):
+    return chi2inv(confidence_level(n_sigma), dof)     # validates n_sigma
+
+
+def _r_factor(A):
+    """Square upper-triangular R with AᵀA = RᵀR (top rows of the QR of A, zero-padded)."""
+    k = A.shape[1]
+    R = np.triu(np.linalg.qr(A, mode="r"))
+    out = np.zeros((k, k))
+    out[:min(R.shape[0], k)] = R[:k]
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------
+# vectorised pieces
+# ----------------------------------------------------------------------------------------------------
+def individual_sq_mahalanobis(density, Y) -> np.ndarray:
+    """Squared Mahalanobis distance d²[j, i] = wᵀw, S_jᵀ w = y_i − μ_j, of every feature to every landmark.
+
+    S_j is the 2×2 upper-triangular square root of landmark j's marginal (QR of S[:, [2j, 2j+1]], all n
+    marginals in one batched QR). Returns shape (n, m). The individual 3σ gate is d² ≤ χ²₂(c).
+    """
+    mu, S = _check_density(density)
+    Y = _check_Y(Y)
+    n = mu.size // 2
+    cols = S.reshape(S.shape[0], n, 2).transpose(1, 0, 2)           # (n, 2n, 2): S[:, [2j, 2j+1]]
+    R = np.linalg.qr(cols, mode="r")                                 # (n, 2, 2), batched
+    r00, r01, r11 = R[:, 0, 0, None], R[:, 0, 1, None], R[:, 1, 1, None]
+    if np.any(r00 == 0) or np.any(r11 == 0):
+        raise ValueError("density has a singular 2×2 marginal; the individual gate needs invertible marginals")
+    D = Y[None, :, :] - mu.reshape(n, 2)[:, :, None]                 # (n, 2, m)
+    w0 = D[:, 0] / r00                                               # Rᵀ w = d, R upper → forward substitution
+    w1 = (D[:, 1] - r01 * w0) / r11
+    return w0 * w0 + w1 * w1
+
+
+def association_surprisal(idx, sU, Y, density, n_sigma: float = 3.0):
+    """(jointly compatible, surprisal) of an association, s = n_U·s_U − log N(y_A; μ_A, P_A).
+
+    Same definition as ``helpers.association.compatibility.joint_compatibility`` (spec §6.2), evaluated
+    with the Gaussian's own marginal / log_pdf / is_within_confidence_region.
+    """
+    mu, _ = _check_density(density)
+    Y = _check_Y(Y)
+    sU = _check_sU(sU)
+    n = mu.size // 2
+    idx = np.asarray(idx)
+    if idx.shape != (n,) or not np.issubdtype(idx.dtype, np.integer):
+        raise ValueError(f"idx must be an integer array of shape ({n},), got {idx.shape} {idx.dtype}")
+    if np.any(idx < -1) or np.any(idx >= Y.shape[1]):
+        raise ValueError(f"idx entries must be −1 or a feature column in [0, {Y.shape[1]})")
+    assoc = np.flatnonzero(idx >= 0)
+    n_u = n - assoc.size
+    if assoc.size == 0:
+        return True, n_u * sU
+    rows = np.column_stack([2 * assoc, 2 * assoc + 1]).ravel()
+    yA = Y[:, idx[assoc]].T.ravel()
+    pA = density.marginal(rows)
+    return bool(pA.is_within_confidence_region(yA, n_sigma)), float(n_u * sU - pA.log_pdf(yA))
+
+
+def snn(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool = False):
+    """Surprisal nearest neighbour association (spec §7, intended semantics), vectorised over features.
+
+    Parameters
+    ----------
+    density : Gaussian of size 2n — the predicted feature-bundle density of the n selected landmarks
+        (no measurement noise in the lab); landmark k of the selection in rows 2k, 2k+1.
+    Y : (2, m) feature pixel coordinates (m = 0 allowed: then nothing can be associated).
+    sU : surprisal of an unassociated landmark, log W + log H (``uniform_surprisal(image_size)``).
+    n_sigma : gate width (3 in the lab). enforce_joint_compatibility : also require the joint gate.
+
+    Returns
+    -------
+    idx : (n,) int array, idx[k] = feature column associated with selected landmark k, or −1.
+    surprisal : float, total surprisal s(idx) of the returned association.
+    """
+    mu, S = _check_density(density)
+    Y = _check_Y(Y)
+    sU = _check_sU(sU)
+    enforce = _check_flag(enforce_joint_compatibility)
+    gate2 = _gate(n_sigma, 2)
+    n, m = mu.size // 2, Y.shape[1]
+    idx = np.full(n, -1, dtype=np.intp)
+    if m == 0:
+        return idx, n * sU
+    compatible = individual_sq_mahalanobis(density, Y) <= gate2       # (n, m), all pairs at once
+    taken = np.zeros(m, dtype=bool)
+    assoc: list[int] = []                                            # selected positions with idx ≥ 0
+    for j in range(n):                                               # loop over landmarks, not features
+        cand = np.flatnonzero(compatible[j] & ~taken)                # ascending feature index
+        if cand.size == 0:
+            continue
+        rows = [r for a in assoc for r in (2 * a, 2 * a + 1)] + [2 * j, 2 * j + 1]
+        R = _r_factor(S[:, rows])
+        k = 2 * len(assoc)
+        R11, R12, R22 = R[:k, :k], R[:k, k:], R[k:, k:]
+        if np.any(np.diag(R) == 0):
+            raise ValueError("density is singular on the rows of this association; cannot evaluate surprisal")
+        if k:
+            yA = Y[:, idx[assoc]].T.ravel()
+            wA = linalg.solve_triangular(R11, yA - mu[rows[:k]], trans="T", check_finite=False)
+            mu_c = mu[2 * j:2 * j + 2] + R12.T @ wA
+            dA2 = float(wA @ wA)
+        else:
+            mu_c, dA2 = mu[2 * j:2 * j + 2], 0.0
+        d = Y[:, cand] - mu_c[:, None]
+        v0 = d[0] / R22[0, 0]
+        v1 = (d[1] - R22[0, 1] * v0) / R22[1, 1]
+        dc2 = v0 * v0 + v1 * v1
+        ds = -sU + _LOG_2PI + np.log(abs(R22[0, 0] * R22[1, 1])) + 0.5 * dc2
+        if enforce:
+            ok = dA2 + dc2 <= _gate(n_sigma, k + 2)
+            cand, ds = cand[ok], ds[ok]
+            if cand.size == 0:
+                continue
+        best = int(np.argmin(ds))                                    # first minimum → lowest feature index
+        if ds[best] <= 0.0:                                          # null hypothesis only if strictly better
+            idx[j] = cand[best]
+            taken[cand[best]] = True
+            assoc.append(j)
+    _, s = association_surprisal(idx, sU, Y, density, n_sigma)
+    return idx, s
+
+
+def snn_reference(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool = False):
+    """The lab's SNN written literally (spec §7): Python loops over landmarks and features, calling
+    ``individual_compatibility`` (a 2×2 marginal QR per pair) and ``joint_compatibility`` (a joint marginal
+    QR and log-density per compatible candidate). Taken features are never offered again.
+
+    Same inputs and outputs as :func:`snn`; kept as the oracle for tests and the naive benchmark.
+    """
+    from helpers.association.compatibility import individual_compatibility, joint_compatibility
+
+    mu, _ = _check_density(density)
+    Y = _check_Y(Y)
+    sU = _check_sU(sU)
+    enforce = _check_flag(enforce_joint_compatibility)
+    _gate(n_sigma, 2)
+    n, m = mu.size // 2, Y.shape[1]
+    idx = [-1] * n
+    s = n * sU
+    if m == 0:
+        return np.array(idx, dtype=np.intp), s
+    taken: set[int] = set()
+    for j in range(n):
+        dsmin = np.inf
+        scur = s
+        idxcur = list(idx)
+        for i in range(m):
+            if i in taken or not individual_compatibility(i, j, Y, density, n_sigma):
+                continue
+            idxnext = list(idxcur)
+            idxnext[j] = i
+            jc, snext = joint_compatibility(np.array(idxnext), sU, Y, density, n_sigma)
+            if enforce and not jc:
+                continue
+            if snext - scur < dsmin:
+                idx, dsmin, s = idxnext, snext - scur, snext
+        _, snext = joint_compatibility(np.array(idxcur), sU, Y, density, n_sigma)
+        if snext - scur < dsmin:
+            idx, s = idxcur, snext
+        if idx[j] >= 0:
+            taken.add(idx[j])
+    return np.array(idx, dtype=np.intp), float(s)

@@ -1,0 +1,214 @@
+"""SNN data association (helpers.association.snn) on the lab's 13-feature fixture (spec §8) and edge cases."""
+import numpy as np
+import pytest
+
+from helpers.association.snn import association_surprisal, individual_sq_mahalanobis, snn, snn_reference
+from helpers.gaussian import Gaussian, chi2inv, confidence_level
+
+MU_Y = np.array([1658.780527, 963.3626597, 433.112825, 731.914696, 1410.293147, 577.2375667])
+S_YY = np.array([
+    [-53.41061755, 9.901075665, 5.306940133, 7.303991992, -5.72141011, 6.609727066],
+    [0, -37.3526274, 0.08127966678, -22.40730348, -0.2022231471, -15.87273879],
+    [0, 0, 36.03250166, -22.71362239, -1.725509191, 3.766078776],
+    [0, 0, 0, -41.70917897, 2.529976157, -8.843062797],
+    [0, 0, 0, 0, 22.34877992, -22.53303115],
+    [0, 0, 0, 0, 0, 32.74457988],
+])
+Y3 = np.array([[1754.156364, 1714.701131, 1921.012306], [765.1206969, 934.6000308, 849.6044461]])
+Y13 = np.array([
+    [549, 942, 1151, 30, 1381.755157, 1757.892465, 1637.791659, 443.3084837, 279.9869569,
+     359.2704718, 1363.489534, 1387.401497, 1387.120065],
+    [855, 625, 1163, 454, 986.4901225, 835.5843074, 1008.082601, 654.6662577, 862.0112818,
+     747.6976779, 603.0677591, 692.7547721, 563.2515042],
+])
+SU = 14.832478857591873
+GATE2 = 11.829158081900795
+
+
+def density6():
+    return Gaussian(MU_Y, S_YY)
+
+
+def density2():
+    return Gaussian(MU_Y[:2], S_YY[:2, :2])
+
+
+def have_compatibility():
+    try:
+        from helpers.association import compatibility  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+needs_compat = pytest.mark.skipif(not have_compatibility(),
+                                  reason="helpers.association.compatibility (issue 2) not available yet")
+
+
+# ---------------------------------------------------------------------------------------------------- gate
+def test_individual_gate_matches_fixture_table():
+    d2 = individual_sq_mahalanobis(density6(), Y13)
+    assert d2.shape == (3, 13)
+    compatible = d2 <= GATE2
+    expected = np.zeros((3, 13), bool)
+    for i, j in [(6, 0), (7, 1), (9, 1), (10, 2), (11, 2), (12, 2)]:
+        expected[j, i] = True
+    np.testing.assert_array_equal(compatible, expected)
+    table = {(6, 0): 1.349, (7, 1): 2.238, (9, 1): 4.437, (10, 2): 4.435, (11, 2): 7.066, (12, 2): 2.056,
+             (5, 0): 12.022}
+    for (i, j), v in table.items():
+        assert d2[j, i] == pytest.approx(v, abs=6e-4)
+    np.testing.assert_allclose(individual_sq_mahalanobis(density2(), Y3)[0], [26.556, 1.3388, 27.147], atol=6e-4)
+
+
+def test_vectorised_gate_equals_per_pair_marginal():
+    d = density6()
+    d2 = individual_sq_mahalanobis(d, Y13)
+    for j in range(3):
+        mj = d.marginal([2 * j, 2 * j + 1])
+        np.testing.assert_allclose(d2[j], mj.sq_mahalanobis(Y13), rtol=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------------- snn
+def test_snn_on_13_feature_fixture():
+    idx, s = snn(density6(), Y13, SU)
+    np.testing.assert_array_equal(idx, [6, 7, 12])
+    assert s == pytest.approx(32.05656943680852, rel=1e-9)
+    jc, s2 = association_surprisal(idx, SU, Y13, density6())
+    assert jc and s == s2
+
+
+def test_snn_choices_are_greedy_minimum_surprisal():
+    """Brute force each greedy step with the full joint surprisal (no incremental algebra)."""
+    d = density6()
+    idx, s = snn(d, Y13, SU)
+    cur = np.full(3, -1)
+    for j in range(3):
+        best, sbest = -1, association_surprisal(cur, SU, Y13, d)[1]
+        for i in np.flatnonzero(individual_sq_mahalanobis(d, Y13)[j] <= GATE2):
+            if i in cur:
+                continue
+            trial = cur.copy()
+            trial[j] = i
+            st = association_surprisal(trial, SU, Y13, d)[1]
+            if st < sbest - 1e-9:
+                best, sbest = i, st
+        cur[j] = best
+    np.testing.assert_array_equal(idx, cur)
+
+
+def test_snn_one_landmark_three_features():
+    idx, s = snn(density2(), Y3, SU)
+    np.testing.assert_array_equal(idx, [1])
+    assert s == pytest.approx(10.105667572052072, rel=1e-6)
+
+
+@needs_compat
+def test_surprisal_agrees_with_joint_compatibility():
+    from helpers.association.compatibility import joint_compatibility
+    for density, Y in [(density6(), Y13), (density2(), Y3)]:
+        for enforce in (False, True):
+            idx, s = snn(density, Y, SU, enforce_joint_compatibility=enforce)
+            jc, s_ref = joint_compatibility(idx, SU, Y, density, 3.0)
+            assert s == pytest.approx(s_ref, rel=1e-9)
+
+
+def random_scene(seed, n=4, m=300):
+    rng = np.random.default_rng(seed)
+    # correlated bundle: a shared 2-D offset (pose) plus independent landmark noise
+    A = np.vstack([np.tile(np.eye(2) * rng.uniform(3, 8), (n, 1)).T, np.diag(rng.uniform(2, 6, 2 * n))])
+    S = np.linalg.qr(A, mode="r")
+    mu = rng.uniform(100, 400, 2 * n)
+    Y = np.vstack([rng.uniform(50, 450, m), rng.uniform(50, 450, m)])
+    Y[:, :n] = mu.reshape(n, 2).T + rng.normal(0, 6, (2, n))         # one plausible feature per landmark
+    return Gaussian(mu, S), np.round(Y)
+
+
+@needs_compat
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("enforce", [False, True])
+def test_vectorised_snn_equals_literal_reference(seed, enforce):
+    density, Y = random_scene(seed)
+    idx, s = snn(density, Y, SU, enforce_joint_compatibility=enforce)
+    idx_ref, s_ref = snn_reference(density, Y, SU, enforce_joint_compatibility=enforce)
+    np.testing.assert_array_equal(idx, idx_ref)
+    assert s == pytest.approx(s_ref, rel=1e-9)
+
+
+@needs_compat
+def test_reference_on_fixture():
+    idx, s = snn_reference(density6(), Y13, SU)
+    np.testing.assert_array_equal(idx, [6, 7, 12])
+    assert s == pytest.approx(32.05656943680852, rel=1e-9)
+
+
+# ---------------------------------------------------------------------------------------------------- rules
+def test_a_feature_is_never_taken_twice():
+    density = Gaussian(np.array([100.0, 100.0, 100.0, 100.0]), 5.0 * np.eye(4))
+    Y = np.array([[101.0], [99.0]])
+    idx, _ = snn(density, Y, SU)
+    np.testing.assert_array_equal(idx, [0, -1])
+
+
+def test_ties_go_to_the_lowest_feature_index():
+    density = Gaussian(np.array([100.0, 100.0]), 5.0 * np.eye(2))
+    Y = np.array([[130.0, 103.0, 97.0, 103.0], [100.0, 104.0, 96.0, 104.0]])   # 1, 2, 3 equidistant
+    idx, _ = snn(density, Y, SU)
+    np.testing.assert_array_equal(idx, [1])
+
+
+def test_null_hypothesis_wins_when_pairing_raises_surprisal():
+    # σ = 2000 px: a feature at the mean is compatible, but Δs = −sU + log 2π + log σ² > 0
+    density = Gaussian(np.array([100.0, 100.0]), 2000.0 * np.eye(2))
+    Y = np.array([[100.0], [100.0]])
+    idx, s = snn(density, Y, SU)
+    np.testing.assert_array_equal(idx, [-1])
+    assert s == SU
+
+
+def test_enforce_joint_compatibility_rejects_a_jointly_incompatible_pairing():
+    # two independent landmarks (σ = 10 px); each feature individually at d² = 10 ≤ 11.83 but jointly
+    # 20 > χ²₄(c) = 16.25
+    density = Gaussian(np.array([500.0, 500.0, 800.0, 500.0]), 10.0 * np.eye(4))
+    r = np.sqrt(10.0) * 10.0
+    Y = np.array([[500.0 + r, 800.0 - r], [500.0, 500.0]])
+    assert chi2inv(confidence_level(3.0), 4) < 20.0
+    idx, _ = snn(density, Y, SU)
+    np.testing.assert_array_equal(idx, [0, 1])
+    idx_jc, s_jc = snn(density, Y, SU, enforce_joint_compatibility=True)
+    np.testing.assert_array_equal(idx_jc, [0, -1])
+    assert s_jc == pytest.approx(association_surprisal(idx_jc, SU, Y, density)[1], rel=1e-12)
+
+
+def test_no_features_gives_nothing_associated():
+    idx, s = snn(density6(), np.zeros((2, 0)), SU)
+    np.testing.assert_array_equal(idx, [-1, -1, -1])
+    assert s == 3 * SU
+
+
+# ---------------------------------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize(
+    "kwargs, word",
+    [
+        ({"Y": np.zeros((3, 4))}, "Y"),
+        ({"Y": np.zeros(4)}, "Y"),
+        ({"Y": np.array([[np.nan], [1.0]])}, "Y"),
+        ({"density": np.zeros(6)}, "density"),
+        ({"density": Gaussian(np.zeros(3), np.eye(3))}, "density"),
+        ({"sU": np.nan}, "sU"),
+        ({"sU": "14.8"}, "sU"),
+        ({"n_sigma": -1.0}, "n_sigma"),
+        ({"enforce_joint_compatibility": "yes"}, "enforce_joint_compatibility"),
+    ],
+)
+def test_bad_inputs_raise_named_errors(kwargs, word):
+    args = {"density": density6(), "Y": Y13, "sU": SU} | kwargs
+    with pytest.raises(ValueError, match=word):
+        snn(**args)
+
+
+def test_association_surprisal_bad_idx():
+    with pytest.raises(ValueError, match="idx"):
+        association_surprisal(np.array([0, 1]), SU, Y13, density6())
+    with pytest.raises(ValueError, match="idx"):
+        association_surprisal(np.array([0, 1, 13]), SU, Y13, density6())
