@@ -1,0 +1,209 @@
+"""Tests for helpers.drivebot.analysis (χ² rule, determinants, loop closure, masks, ellipses, tangent fit)."""
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from helpers.drivebot import analysis as an  # noqa: E402
+from helpers.gaussian import chi2inv, confidence_level  # noqa: E402
+
+
+def _random_spd(rng, n, d=2):
+    A = rng.standard_normal((n, d, d))
+    return A @ np.swapaxes(A, 1, 2) + 0.1 * np.eye(d)
+
+
+# ---------------------------------------------------------------------------------------------- χ²
+def test_chi2_interval_and_within():
+    lo, hi = an.chi2_interval(200)
+    assert lo == pytest.approx(200 - 4 * 20) and hi == pytest.approx(280)
+    assert an.chi2_within(210.0, 200)
+    assert not an.chi2_within(300.0, 200)
+    assert an.chi2_within(0.0, 0)
+    assert not an.chi2_within(1e-3, 0)
+
+
+@pytest.mark.parametrize("bad", [-1, 2.5, True, "3"])
+def test_chi2_interval_bad_dof(bad):
+    with pytest.raises(ValueError, match="dof"):
+        an.chi2_interval(bad)
+
+
+@pytest.mark.parametrize("bad", [0, -1.0, np.inf, True])
+def test_chi2_interval_bad_k(bad):
+    with pytest.raises(ValueError, match="k must"):
+        an.chi2_interval(10, bad)
+
+
+@pytest.mark.parametrize("bad", [-1.0, np.nan, "x"])
+def test_chi2_within_bad_chi2(bad):
+    with pytest.raises(ValueError, match="chi2"):
+        an.chi2_within(bad, 10)
+
+
+class _V:
+    def __init__(self, d, fixed):
+        self.fixed = fixed
+        self.dimension = d
+
+
+class _E:
+    pass
+
+
+def _cls(name, **attrs):
+    return type(name, (), attrs)
+
+
+class _Graph:
+    def __init__(self, vertices, edges):
+        self._v, self._e = vertices, edges
+
+    def vertices(self):
+        return self._v
+
+    def edges(self):
+        return self._e
+
+
+def test_graph_dof_counts_counts_by_class_and_free_vertices():
+    Pose = _cls("Pose", dimension=3, fixed=False)
+    Point = _cls("Point", dimension=2, fixed=False)
+    Fixed = _cls("Fixed", dimension=3, fixed=True)
+    Kin = _cls("Kin", measurement_dimension=3)
+    Rb = _cls("Rb", measurement_dimension=2)
+    g = _Graph([Fixed(), Pose(), Pose(), Point()], [Kin(), Kin(), Rb(), Rb(), Rb()])
+    counts = an.graph_dof_counts(g)
+    assert counts["measurement"] == 12 and counts["free"] == 8 and counts["dof"] == 4
+    assert counts["by_edge_class"] == {"Kin": 6, "Rb": 6}
+    assert an.chi2_dof(g) == 4
+
+
+# ---------------------------------------------------------------------------------------------- covariances
+def test_determinant_table_ratio():
+    Pb = np.array([np.diag([4.0, 1.0]), np.diag([2.0, 2.0])])
+    Pa = np.array([np.diag([1.0, 1.0]), np.diag([1.0, 2.0])])
+    t = an.determinant_table([1, 2], Pb, Pa)
+    np.testing.assert_allclose(t["det_before"], [4, 4])
+    np.testing.assert_allclose(t["ratio"], [0.25, 0.5])
+    np.testing.assert_allclose(t["sqrt_ratio"], [0.5, np.sqrt(0.5)])
+
+
+def test_determinant_table_bad_inputs():
+    P = np.array([np.eye(2)])
+    with pytest.raises(ValueError, match="must agree in L"):
+        an.determinant_table([1, 2], P, P)
+    with pytest.raises(ValueError, match="P_before"):
+        an.determinant_table([1], np.zeros((1, 3, 3)), P)
+    with pytest.raises(ValueError, match="positive definite"):
+        an.determinant_table([1], np.zeros((1, 2, 2)), P)
+    with pytest.raises(ValueError, match="finite"):
+        an.determinant_table([1], P, np.full((1, 2, 2), np.nan))
+
+
+def test_covariance_determinants_bad():
+    with pytest.raises(ValueError, match="P must"):
+        an.covariance_determinants(np.eye(2))
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(st.integers(0, 10_000))
+def test_ellipse_axes_reconstruct_covariance(seed):
+    rng = np.random.default_rng(seed)
+    P = _random_spd(rng, 5)
+    a, b, ang = an.ellipse_axes(P, 2.0)
+    s = chi2inv(confidence_level(2.0), 2)
+    assert np.all(a >= b)
+    c, si = np.cos(ang), np.sin(ang)
+    U = np.stack([np.column_stack([c, si]), np.column_stack([-si, c])], axis=2)  # columns major, minor
+    R = U @ (np.stack([a ** 2, b ** 2], 1)[:, :, None] * np.swapaxes(U, 1, 2)) / s
+    np.testing.assert_allclose(R, P, rtol=1e-9, atol=1e-12)
+
+
+def test_plot_covariance_ellipses_adds_one_collection():
+    fig, ax = plt.subplots()
+    coll = an.plot_covariance_ellipses(ax, [[0, 0], [1, 1]], np.array([np.eye(2), np.diag([4.0, 1.0])]),
+                                       edgecolor="k")
+    assert len(ax.collections) == 1 and coll is ax.collections[0]
+    with pytest.raises(ValueError, match="means"):
+        an.plot_covariance_ellipses(ax, [[0, 0]], np.array([np.eye(2), np.eye(2)]))
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------- loop closure
+def test_find_loop_closure_first_regap():
+    # landmark 1 seen at 1..50 then again at 1207; landmark 2 at 3..40 and at 1211; landmark 3 contiguous
+    step = np.r_[np.arange(1, 51), np.arange(3, 41), np.arange(100, 200), 1207, 1208, 1211]
+    lm = np.r_[np.ones(50, int), np.full(38, 2), np.full(100, 3), 1, 1, 2]
+    assert an.find_loop_closure(step, lm, min_gap=300) == (1207, 1)
+    assert an.find_loop_closure(step[:188], lm[:188]) == (None, None)
+    # order of the stream does not matter
+    p = np.random.default_rng(1).permutation(step.size)
+    assert an.find_loop_closure(step[p], lm[p]) == (1207, 1)
+
+
+def test_find_loop_closure_bad_inputs():
+    with pytest.raises(ValueError, match="same shape"):
+        an.find_loop_closure(np.arange(3), np.arange(2))
+    with pytest.raises(ValueError, match="step must"):
+        an.find_loop_closure(np.arange(3.0), np.arange(3))
+    with pytest.raises(ValueError, match="min_gap"):
+        an.find_loop_closure(np.arange(3), np.arange(3), min_gap=0)
+
+
+# ---------------------------------------------------------------------------------------------- masks / RMS
+def test_masked_and_rms():
+    v = np.arange(6.0).reshape(3, 2)
+    keep = np.array([True, False, True])
+    m = an.masked(v, keep)
+    assert np.isnan(m[1]).all() and m[0, 1] == 1
+    m2 = an.masked(v.T, keep)
+    assert np.isnan(m2[:, 1]).all()
+    assert np.isnan(an.masked(np.arange(3.0), keep)[1])
+    est = np.array([[0.0, 0.0], [100.0, 0.0], [3.0, 4.0]])
+    tru = np.zeros((3, 2))
+    assert an.position_error_rms(est, tru, keep) == pytest.approx(np.sqrt(12.5))
+    assert an.position_error_rms(est.T, tru.T, keep) == pytest.approx(np.sqrt(12.5))
+
+
+def test_masked_and_rms_bad_inputs():
+    with pytest.raises(ValueError, match="keep must"):
+        an.masked(np.zeros(3), np.array([1, 0, 1]))
+    with pytest.raises(ValueError, match="do not match"):
+        an.masked(np.zeros(4), np.ones(3, bool))
+    with pytest.raises(ValueError, match="matching"):
+        an.position_error_rms(np.zeros((3, 2)), np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="no vertex"):
+        an.position_error_rms(np.zeros((3, 2)), np.zeros((3, 2)), np.zeros(3, bool))
+    with pytest.raises(ValueError, match="NaN"):
+        an.position_error_rms(np.full((3, 2), np.nan), np.zeros((3, 2)))
+
+
+# ---------------------------------------------------------------------------------------------- tangents
+def test_fit_tangent_centre_recovers_centre():
+    rng = np.random.default_rng(3)
+    centre = np.array([12.0, -4.0])
+    pts = rng.uniform(-50, 50, (40, 2))
+    radial = pts - centre
+    t = np.column_stack([-radial[:, 1], radial[:, 0]]) / np.linalg.norm(radial, axis=1)[:, None]
+    n = radial / np.linalg.norm(radial, axis=1)[:, None]
+    P = 4.0 * t[:, :, None] * t[:, None, :] + 0.5 * n[:, :, None] * n[:, None, :]
+    np.testing.assert_allclose(an.fit_tangent_centre(pts, P), centre, atol=1e-8)
+    assert np.max(an.tangent_misalignment(pts, P, centre)) < 1e-8
+    assert np.min(an.tangent_misalignment(pts, P, centre + [200.0, 0.0])) >= 0
+
+
+def test_tangent_bad_inputs():
+    P = np.array([np.eye(2), np.eye(2)])
+    with pytest.raises(ValueError, match="points"):
+        an.fit_tangent_centre(np.zeros((3, 2)), P)
+    with pytest.raises(ValueError, match="at least 2"):
+        an.fit_tangent_centre(np.zeros((1, 2)), P[:1])
+    with pytest.raises(ValueError, match="centre must"):
+        an.tangent_misalignment(np.ones((2, 2)), P, [1.0])
+    with pytest.raises(ValueError, match="coincides"):
+        an.tangent_misalignment(np.ones((2, 2)), P, [1.0, 1.0])
