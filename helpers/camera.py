@@ -1,0 +1,477 @@
+"""The calibrated camera: OpenCV's 12-coefficient distortion model, its Jacobians, FOV and file I/O.
+
+Model (course Lab 7/8; identical to ``cv2.projectPoints`` with the RATIONAL + THIN_PRISM model, no tilt).
+For a point rPCc = [x, y, z] in the camera frame {c} (z along the optical axis, x right, y down):
+
+    u = x/z,  v = y/z,  ρ = r² = u² + v²                      (no check on the sign of z)
+    α = k1 ρ + k2 ρ² + k3 ρ³,   β = k4 ρ + k5 ρ² + k6 ρ³,   c = (1 + α)/(1 + β)
+    u' = c u + 2 p1 u v + p2 (ρ + 2u²) + s1 ρ + s2 ρ²
+    v' = c v + p1 (ρ + 2v²) + 2 p2 u v + s3 ρ + s4 ρ²
+    pixel = [fx u' + cx, fy v' + cy]
+
+Jacobian (r²-form, finite on the optical axis): with α_ρ = k1 + 2k2 ρ + 3k3 ρ², β_ρ = k4 + 2k5 ρ + 3k6 ρ²,
+c_ρ = (α_ρ (1 + β) − (1 + α) β_ρ)/(1 + β)²,
+
+    ∂u'/∂u = c + 2u² c_ρ + 2p1 v + 6p2 u + 2s1 u + 4s2 ρ u
+    ∂u'/∂v = 2uv c_ρ + 2p1 u + 2p2 v + 2s1 v + 4s2 ρ v
+    ∂v'/∂u = 2uv c_ρ + 2p1 u + 2p2 v + 2s3 u + 4s4 ρ u
+    ∂v'/∂v = c + 2v² c_ρ + 6p1 v + 2p2 u + 2s3 v + 4s4 ρ v
+    ∂pixel/∂rPCc = diag(fx, fy) · [∂(u', v')/∂(u, v)] · [[1/z, 0, −x/z²], [0, 1/z, −y/z²]]
+
+World points: with the camera pose η = [rCNn; Θnc] and Rnc = rpy2rot(Θnc), rPCc = Rncᵀ (rPNn − rCNn), and
+
+    ∂pixel/∂rPNn = J Rncᵀ,   ∂pixel/∂rCNn = −J Rncᵀ,   ∂pixel/∂Θk = J (∂Rnc/∂Θk)ᵀ (rPNn − rCNn).
+
+From the body pose [rBNn; Θnb] (camera mounted at rCBb with orientation Rbc in {b}):
+rCNn = rBNn + Rnb rCBb, Rnc = Rnb Rbc, so rPCc = Rbcᵀ (Rnbᵀ (rPNn − rBNn) − rCBb) and
+
+    ∂pixel/∂rPNn = J Rbcᵀ Rnbᵀ,   ∂pixel/∂rBNn = −J Rbcᵀ Rnbᵀ,   ∂pixel/∂Θk = J Rbcᵀ (∂Rnb/∂Θk)ᵀ (rPNn − rBNn).
+
+Everything is vectorised over N points: a point is (3,) and N points are (3, N); pixels are (2,) / (2, N);
+Jacobians are (2, 3) / (N, 2, 3).
+"""
+from __future__ import annotations
+
+import numbers
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from .rotation import rot2rpy, rpy2rot, rpy2rot_derivatives
+
+__all__ = [
+    "Camera",
+    "PoseJacobians",
+    "FOVAngles",
+    "CALIB_RATIONAL_MODEL",
+    "CALIB_THIN_PRISM_MODEL",
+    "CALIB_TILTED_MODEL",
+    "data_dir",
+    "load_lab_camera",
+]
+
+CALIB_RATIONAL_MODEL = 16384
+CALIB_THIN_PRISM_MODEL = 32768
+CALIB_TILTED_MODEL = 262144
+_REQUIRED_FLAGS = CALIB_RATIONAL_MODEL | CALIB_THIN_PRISM_MODEL
+
+
+def data_dir() -> Path:
+    """The workbook's ``data/`` directory (located through the installed package)."""
+    return Path(__file__).resolve().parents[1] / "data"
+
+
+def load_lab_camera() -> "Camera":
+    """The Lab 8 reference calibration (``data/camera.xml``, 1920 × 1440 wide-angle action camera)."""
+    return Camera.from_xml(data_dir() / "camera.xml")
+
+
+class PoseJacobians(NamedTuple):
+    """Jacobians of pixel coordinates, each (2, 3) for one point or (N, 2, 3) for N points.
+
+    ``wrt_point``: ∂pixel/∂rPNn.  ``wrt_position``: ∂pixel/∂(camera or body position).
+    ``wrt_angles``: ∂pixel/∂[φ, θ, ψ] (columns: roll, pitch, yaw of the camera or body).
+    """
+
+    wrt_point: np.ndarray
+    wrt_position: np.ndarray
+    wrt_angles: np.ndarray
+
+
+class FOVAngles(NamedTuple):
+    """Full field-of-view angles in radians."""
+
+    horizontal: float
+    vertical: float
+    diagonal: float
+
+
+def _points(P, name, rows=3):
+    P = np.asarray(P, dtype=float)
+    if P.ndim not in (1, 2) or P.shape[0] != rows:
+        raise ValueError(f"{name} must have shape ({rows},) or ({rows}, N), got {P.shape}")
+    if not np.all(np.isfinite(P)):
+        raise ValueError(f"{name} must be finite (no NaN/inf)")
+    return P
+
+
+def _pose(eta, name):
+    eta = np.asarray(eta, dtype=float)
+    if eta.shape != (6,):
+        raise ValueError(f"{name} must have shape (6,) = [position (3); roll, pitch, yaw (3)], got {eta.shape}")
+    if not np.all(np.isfinite(eta)):
+        raise ValueError(f"{name} must be finite (no NaN/inf)")
+    return eta
+
+
+class Camera:
+    """Pinhole camera with OpenCV's rational + thin-prism distortion (12 coefficients).
+
+    Parameters
+    ----------
+    K : (3, 3) camera matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (fx, fy > 0, no skew)
+    dist_coeffs : 12 coefficients in OpenCV order k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4 (4, 5 or 8 are
+        zero-padded)
+    image_size : (width, height) in pixels, positive integers
+    r_cb_b : camera position in the body frame {b} (default 0)
+    R_bc : camera orientation relative to {b} (default I)
+    flags : OpenCV calibration flags; must include RATIONAL (16384) and THIN_PRISM (32768), not TILTED
+    """
+
+    def __init__(self, K, dist_coeffs, image_size, r_cb_b=None, R_bc=None, flags: int = _REQUIRED_FLAGS):
+        K = np.array(K, dtype=float)
+        if K.shape != (3, 3) or not np.all(np.isfinite(K)):
+            raise ValueError(f"K must be a finite (3, 3) camera matrix, got shape {K.shape}")
+        if K[0, 1] != 0 or K[1, 0] != 0 or K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1:
+            raise ValueError("K must have the form [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew)")
+        if K[0, 0] <= 0 or K[1, 1] <= 0:
+            raise ValueError(f"K must have positive focal lengths, got fx={K[0, 0]}, fy={K[1, 1]}")
+        d = np.asarray(dist_coeffs, dtype=float).ravel()
+        if d.size not in (4, 5, 8, 12):
+            raise ValueError(f"dist_coeffs must have 12 entries (k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4), got {d.size}")
+        if not np.all(np.isfinite(d)):
+            raise ValueError("dist_coeffs must be finite (no NaN/inf)")
+        d = np.concatenate([d, np.zeros(12 - d.size)])
+        size = np.asarray(image_size)
+        if size.shape != (2,) or not np.all(np.isfinite(size.astype(float))) or np.any(size != np.round(size)) \
+                or np.any(size <= 0):
+            raise ValueError(f"image_size must be two positive integers (width, height), got {image_size!r}")
+        r_cb_b = np.zeros(3) if r_cb_b is None else np.array(r_cb_b, dtype=float)
+        if r_cb_b.shape != (3,) or not np.all(np.isfinite(r_cb_b)):
+            raise ValueError(f"r_cb_b must be a finite vector of shape (3,), got shape {r_cb_b.shape}")
+        R_bc = np.eye(3) if R_bc is None else np.array(R_bc, dtype=float)
+        if R_bc.shape != (3, 3) or not np.all(np.isfinite(R_bc)) or not np.allclose(R_bc.T @ R_bc, np.eye(3),
+                                                                                     atol=1e-9) \
+                or np.linalg.det(R_bc) <= 0:
+            raise ValueError("R_bc must be a (3, 3) rotation matrix")
+        if isinstance(flags, bool) or not isinstance(flags, numbers.Integral):
+            raise ValueError(f"flags must be an integer, got {flags!r}")
+        if (flags & _REQUIRED_FLAGS) != _REQUIRED_FLAGS or flags & CALIB_TILTED_MODEL:
+            raise ValueError(f"flags must include CALIB_RATIONAL_MODEL and CALIB_THIN_PRISM_MODEL and not "
+                             f"CALIB_TILTED_MODEL, got {flags}")
+        self.K = K
+        self.dist_coeffs = d
+        self.image_size = (int(size[0]), int(size[1]))
+        self.r_cb_b = r_cb_b
+        self.R_bc = R_bc
+        self.flags = int(flags)
+        self.fold_radius = self._fold_radius()
+
+    # -- convenience -----------------------------------------------------------------------------------
+    @property
+    def width(self) -> int:
+        return self.image_size[0]
+
+    @property
+    def height(self) -> int:
+        return self.image_size[1]
+
+    def __repr__(self) -> str:
+        fx, fy, cx, cy = self.K[0, 0], self.K[1, 1], self.K[0, 2], self.K[1, 2]
+        return f"Camera(fx={fx:.3f}, fy={fy:.3f}, cx={cx:.3f}, cy={cy:.3f}, image_size={self.image_size})"
+
+    # -- file I/O ----------------------------------------------------------------------------------------
+    @classmethod
+    def from_xml(cls, path) -> "Camera":
+        """Read an OpenCV FileStorage file with a map ``camera`` holding ``camera_matrix`` (3×3),
+        ``distortion_coefficients`` (12×1), ``flags`` (int) and ``imageSize`` (2 ints: width height)."""
+        import cv2
+
+        path = Path(path)
+        if not path.is_file():
+            raise ValueError(f"path: camera file {path} does not exist")
+        try:
+            fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        except (cv2.error, SystemError) as exc:  # OpenCV's parser raises cv2.error (wrapped in SystemError)
+            raise ValueError(f"path: {path} is not a readable OpenCV FileStorage file "
+                             f"({type(exc).__name__})") from None
+        try:
+            if not fs.isOpened():
+                raise ValueError(f"path: {path} is not a readable OpenCV FileStorage file")
+            node = fs.getNode("camera")
+            if node.empty() or not node.isMap():
+                raise ValueError(f"{path}: missing map node 'camera'")
+
+            def matrix(name, shape):
+                m = node.getNode(name).mat()
+                if m is None or np.asarray(m).shape not in shape:
+                    raise ValueError(f"{path}: node 'camera/{name}' must be an opencv-matrix of shape {shape[0]}")
+                return np.asarray(m, dtype=float)
+
+            K = matrix("camera_matrix", [(3, 3)])
+            d = matrix("distortion_coefficients", [(12, 1), (1, 12), (12,)])
+            fl = node.getNode("flags")
+            if fl.empty() or not fl.isInt():
+                raise ValueError(f"{path}: node 'camera/flags' must be an integer")
+            flags = int(fl.real())
+            sz = node.getNode("imageSize")
+            if sz.empty() or not sz.isSeq() or sz.size() != 2 or not all(sz.at(k).isInt() for k in range(2)):
+                raise ValueError(f"{path}: node 'camera/imageSize' must be a sequence of 2 integers (width height)")
+            image_size = (int(sz.at(0).real()), int(sz.at(1).real()))
+        finally:
+            fs.release()
+        try:
+            return cls(K, d, image_size, flags=flags)
+        except ValueError as exc:
+            raise ValueError(f"{path}: invalid camera data: {exc}") from None
+
+    def to_xml(self, path) -> None:
+        """Write the calibration in the format read by :meth:`from_xml` (the body mounting is not stored)."""
+        import cv2
+
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+        if not fs.isOpened():
+            raise ValueError(f"path: cannot open {path} for writing")
+        fs.startWriteStruct("camera", cv2.FileNode_MAP)
+        fs.write("camera_matrix", self.K)
+        fs.write("distortion_coefficients", self.dist_coeffs.reshape(12, 1))
+        fs.write("flags", self.flags)
+        fs.startWriteStruct("imageSize", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
+        fs.write("", self.width)
+        fs.write("", self.height)
+        fs.endWriteStruct()
+        fs.endWriteStruct()
+        fs.release()
+
+    # -- the distortion model in normalised coordinates ---------------------------------------------------
+    def _distort(self, u, v, jacobian: bool):
+        k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = self.dist_coeffs
+        rho = u * u + v * v
+        alpha = rho * (k1 + rho * (k2 + rho * k3))
+        beta = rho * (k4 + rho * (k5 + rho * k6))
+        den = 1.0 + beta
+        c = (1.0 + alpha) / den
+        ud = c * u + 2 * p1 * u * v + p2 * (rho + 2 * u * u) + s1 * rho + s2 * rho * rho
+        vd = c * v + p1 * (rho + 2 * v * v) + 2 * p2 * u * v + s3 * rho + s4 * rho * rho
+        if not jacobian:
+            return ud, vd
+        a_r = k1 + 2 * k2 * rho + 3 * k3 * rho * rho
+        b_r = k4 + 2 * k5 * rho + 3 * k6 * rho * rho
+        c_r = (a_r * den - (1.0 + alpha) * b_r) / (den * den)
+        duu = c + 2 * u * u * c_r + 2 * p1 * v + 6 * p2 * u + 2 * s1 * u + 4 * s2 * rho * u
+        duv = 2 * u * v * c_r + 2 * p1 * u + 2 * p2 * v + 2 * s1 * v + 4 * s2 * rho * v
+        dvu = 2 * u * v * c_r + 2 * p1 * u + 2 * p2 * v + 2 * s3 * u + 4 * s4 * rho * u
+        dvv = c + 2 * v * v * c_r + 6 * p1 * v + 2 * p2 * u + 2 * s3 * v + 4 * s4 * rho * v
+        return ud, vd, duu, duv, dvu, dvv
+
+    # -- projection ----------------------------------------------------------------------------------------
+    def vector_to_pixel(self, rPCc, return_jacobian: bool = False):
+        """Pixel of the camera-frame vector(s) rPCc ((3,) or (3, N)); with ``return_jacobian`` also
+        ∂pixel/∂rPCc ((2, 3) or (N, 2, 3)). Points with z = 0 raise ValueError; z < 0 is projected through
+        x/z like OpenCV (no sign check — use :meth:`is_vector_within_fov` to select visible points)."""
+        P = _points(rPCc, "rPCc")
+        single = P.ndim == 1
+        P = P.reshape(3, -1)
+        x, y, z = P
+        if np.any(z == 0):
+            raise ValueError("rPCc has points with z = 0 (in the camera's focal plane); they have no pixel")
+        u, v = x / z, y / z
+        fx, fy, cx, cy = self.K[0, 0], self.K[1, 1], self.K[0, 2], self.K[1, 2]
+        out = self._distort(u, v, return_jacobian)
+        Q = np.vstack([fx * out[0] + cx, fy * out[1] + cy])
+        if not np.all(np.isfinite(Q)):
+            raise ValueError("rPCc gives a non-finite pixel (distortion denominator 1 + β vanishes)")
+        if not return_jacobian:
+            return Q[:, 0] if single else Q
+        _, _, duu, duv, dvu, dvv = out
+        iz = 1.0 / z
+        N = P.shape[1]
+        J = np.empty((N, 2, 3))
+        # [∂u'/∂u, ∂u'/∂v] · [[1/z, 0, −u/z], [0, 1/z, −v/z]]
+        J[:, 0, 0] = fx * duu * iz
+        J[:, 0, 1] = fx * duv * iz
+        J[:, 0, 2] = -fx * (duu * u + duv * v) * iz
+        J[:, 1, 0] = fy * dvu * iz
+        J[:, 1, 1] = fy * dvv * iz
+        J[:, 1, 2] = -fy * (dvu * u + dvv * v) * iz
+        return (Q[:, 0], J[0]) if single else (Q, J)
+
+    def world_to_vector(self, rPNn, eta) -> np.ndarray:
+        """rPCc = Rncᵀ (rPNn − rCNn) for world point(s) rPNn ((3,) or (3, N)) and camera pose
+        eta = [rCNn; Θnc] (6,)."""
+        P = _points(rPNn, "rPNn")
+        eta = _pose(eta, "eta")
+        Rnc = rpy2rot(eta[3:])
+        d = P - (eta[:3] if P.ndim == 1 else eta[:3, None])
+        return Rnc.T @ d
+
+    def _world_to_pixel(self, P, r, Theta, A, t, return_jacobian):
+        """Shared core: rPCc = A (Rᵀ (P − r) − t), R = rpy2rot(Θ)."""
+        single = P.ndim == 1
+        P = P.reshape(3, -1)
+        R, *dR = rpy2rot_derivatives(Theta)
+        d = P - r[:, None]
+        rPCc = A @ (R.T @ d - t[:, None])
+        if not return_jacobian:
+            Q = self.vector_to_pixel(rPCc)
+            return Q[:, 0] if single else Q
+        Q, J = self.vector_to_pixel(rPCc, return_jacobian=True)  # (N, 2, 3)
+        JA = J @ A  # (N, 2, 3)
+        J_point = JA @ R.T
+        # ∂rPCc/∂Θk = A (∂R/∂Θk)ᵀ d  → columns k of a (N, 3, 3) array
+        dP = np.stack([(dRk.T @ d).T for dRk in dR], axis=-1)  # (N, 3, 3): [:, :, k]
+        J_ang = JA @ dP
+        jac = PoseJacobians(J_point, -J_point, J_ang)
+        if single:
+            return Q[:, 0], PoseJacobians(*(j[0] for j in jac))
+        return Q, jac
+
+    def world_to_pixel(self, rPNn, eta, return_jacobian: bool = False):
+        """Pixel(s) of world point(s) rPNn seen from the camera pose eta = [rCNn; Θnc].
+
+        With ``return_jacobian`` returns ``(pixels, PoseJacobians)`` with ∂pixel/∂rPNn (``wrt_point``),
+        ∂pixel/∂rCNn (``wrt_position``) and ∂pixel/∂Θnc (``wrt_angles``).
+        """
+        P = _points(rPNn, "rPNn")
+        eta = _pose(eta, "eta")
+        return self._world_to_pixel(P, eta[:3], eta[3:], np.eye(3), np.zeros(3), return_jacobian)
+
+    def body_to_pixel(self, rPNn, eta_body, return_jacobian: bool = False):
+        """Pixel(s) of world point(s) rPNn seen from the camera mounted on a body at pose
+        eta_body = [rBNn; Θnb] (uses ``r_cb_b`` and ``R_bc``).
+
+        With ``return_jacobian`` returns ``(pixels, PoseJacobians)`` with ∂pixel/∂rPNn, ∂pixel/∂rBNn and
+        ∂pixel/∂Θnb.
+        """
+        P = _points(rPNn, "rPNn")
+        eta_body = _pose(eta_body, "eta_body")
+        return self._world_to_pixel(P, eta_body[:3], eta_body[3:], self.R_bc.T, self.r_cb_b, return_jacobian)
+
+    def camera_pose_from_body(self, eta_body) -> np.ndarray:
+        """Camera pose [rCNn; Θnc] from the body pose [rBNn; Θnb]: rCNn = rBNn + Rnb rCBb, Rnc = Rnb Rbc."""
+        eta_body = _pose(eta_body, "eta_body")
+        Rnb = rpy2rot(eta_body[3:])
+        return np.concatenate([eta_body[:3] + Rnb @ self.r_cb_b, rot2rpy(Rnb @ self.R_bc)])
+
+    # -- inversion ---------------------------------------------------------------------------------------
+    def _fold_radius(self) -> float:
+        """Normalised radius r_f where the radial map r ↦ c(r²)·r stops increasing (∞ if it never does).
+
+        Beyond r_f a wide-angle polynomial/rational model folds back (several radii give one pixel), so the
+        model is only invertible, and only meaningful, for r < r_f (off-axis angle < atan r_f)."""
+        k1, k2, _, _, k3, k4, k5, k6 = self.dist_coeffs[:8]
+        r = np.linspace(0.0, 20.0, 20001)
+        rho = r * r
+        alpha = rho * (k1 + rho * (k2 + rho * k3))
+        beta = rho * (k4 + rho * (k5 + rho * k6))
+        a_r = k1 + 2 * k2 * rho + 3 * k3 * rho * rho
+        b_r = k4 + 2 * k5 * rho + 3 * k6 * rho * rho
+        den = 1.0 + beta
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c = (1.0 + alpha) / den
+            slope = c + 2 * rho * (a_r * den - (1.0 + alpha) * b_r) / (den * den)  # d(c r)/dr
+        bad = ~(slope > 0)
+        if not np.any(bad):
+            return np.inf
+        k = int(np.argmax(bad))
+        if k == 0:
+            return 0.0
+        lo, hi = float(r[k - 1]), float(r[k])  # refine the sign change of the slope by bisection
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            ud, _ = self._distort(np.array([mid - 1e-7, mid + 1e-7]), np.zeros(2), False)
+            lo, hi = (mid, hi) if ud[1] > ud[0] else (lo, mid)
+        return lo
+
+    def pixel_to_vector(self, pixels, strict: bool = True, tol: float = 1e-12, max_iter: int = 100) -> np.ndarray:
+        """Unit vector(s) in {c} whose projection is the given pixel(s) ((2,) or (2, N) → (3,) or (3, N)).
+
+        Exact inversion of the distortion model by damped Newton iterations started at the distorted
+        normalised point, vectorised over all pixels (the loop runs over iterations, never over pixels) and
+        confined to the invertible range r < ``fold_radius``. A pixel beyond the image of that range (e.g.
+        the extreme corners of a strongly distorting wide-angle lens) has no exact preimage: with
+        ``strict`` it raises ValueError, otherwise the least-squares preimage (at the fold) is returned.
+        """
+        Qp = _points(pixels, "pixels", rows=2)
+        single = Qp.ndim == 1
+        Qp = Qp.reshape(2, -1)
+        fx, fy, cx, cy = self.K[0, 0], self.K[1, 1], self.K[0, 2], self.K[1, 2]
+        tu, tv = (Qp[0] - cx) / fx, (Qp[1] - cy) / fy  # distorted normalised coordinates
+        rho_max = self.fold_radius ** 2
+        u, v = tu.copy(), tv.copy()
+        scale = np.where(u * u + v * v > rho_max, np.sqrt(rho_max / np.maximum(u * u + v * v, 1e-300)), 1.0)
+        u, v = u * scale, v * scale
+
+        def residual(u, v):
+            ud, vd = self._distort(u, v, False)
+            return ud - tu, vd - tv
+
+        ru, rv = residual(u, v)
+        cost = ru * ru + rv * rv
+        for _ in range(max_iter):
+            active = cost > tol * tol
+            if not np.any(active):
+                break
+            _, _, a, b, c, d = self._distort(u, v, True)
+            det = a * d - b * c
+            det = np.where(det == 0, np.finfo(float).tiny, det)
+            du = -(d * ru - b * rv) / det
+            dv = -(-c * ru + a * rv) / det
+            step = np.ones_like(u)
+            # backtracking line search for all pixels at once: halve the step wherever the cost did not
+            # drop or the step left the invertible range
+            for _ in range(40):
+                nu, nv = u + step * du, v + step * dv
+                nru, nrv = residual(nu, nv)
+                ncost = nru * nru + nrv * nrv
+                ok = (ncost < cost) & (nu * nu + nv * nv < rho_max)
+                bad = active & ~ok & (step > 1e-12)
+                if not np.any(bad):
+                    break
+                step = np.where(bad, 0.5 * step, step)
+            accept = active & ok
+            if not np.any(accept):
+                break
+            u, v = np.where(accept, nu, u), np.where(accept, nv, v)
+            ru, rv = np.where(accept, nru, ru), np.where(accept, nrv, rv)
+            cost = np.where(accept, ncost, cost)
+        if strict and not np.all(cost <= (1e3 * tol) ** 2):
+            raise ValueError("pixels contains pixel(s) outside the invertible range of the distortion model "
+                             "(beyond the fold of the lens model); pass strict=False for the least-squares ray")
+        V = np.vstack([u, v, np.ones_like(u)])
+        V /= np.linalg.norm(V, axis=0)
+        return V[:, 0] if single else V
+
+    # -- field of view -----------------------------------------------------------------------------------
+    def fov_angles(self) -> FOVAngles:
+        """Horizontal, vertical and diagonal FOV (radians) by exact inversion of the model.
+
+        Horizontal: angle between the rays of the left and right image edges at the principal row cy;
+        vertical: top and bottom edges at the principal column cx; diagonal: the larger of the angles
+        between opposite image corners. Edges are the outer pixel borders (−0.5 and size − 0.5).
+        """
+        W, H = self.width, self.height
+        cx, cy = self.K[0, 2], self.K[1, 2]
+        lo_x, hi_x, lo_y, hi_y = -0.5, W - 0.5, -0.5, H - 0.5
+        pts = np.array([[lo_x, hi_x, cx, cx, lo_x, hi_x, hi_x, lo_x],
+                        [cy, cy, lo_y, hi_y, lo_y, hi_y, lo_y, hi_y]])
+        V = self.pixel_to_vector(pts, strict=False)
+
+        def angle(a, b):
+            return float(np.arctan2(np.linalg.norm(np.cross(V[:, a], V[:, b])), V[:, a] @ V[:, b]))
+
+        return FOVAngles(angle(0, 1), angle(2, 3), max(angle(4, 5), angle(6, 7)))
+
+    def max_off_axis_angle(self) -> float:
+        """atan(fold_radius): the largest off-axis angle (radians) for which the model is invertible."""
+        return float(np.arctan(self.fold_radius))
+
+    def is_vector_within_fov(self, rPCc):
+        """Whether camera-frame vector(s) are visible: z > 0, off-axis angle < :meth:`max_off_axis_angle`
+        (beyond it the lens model folds back), and the pixel lies inside the image
+        [−0.5, W − 0.5] × [−0.5, H − 0.5]. (3,) → bool; (3, N) → bool array (N,)."""
+        P = _points(rPCc, "rPCc")
+        single = P.ndim == 1
+        P = P.reshape(3, -1)
+        off_axis = np.arctan2(np.hypot(P[0], P[1]), P[2])
+        inside = (P[2] > 0) & (off_axis < self.max_off_axis_angle())
+        Q = np.full((2, P.shape[1]), -np.inf)
+        if np.any(inside):
+            Q[:, inside] = self.vector_to_pixel(P[:, inside])
+        inside &= (Q[0] >= -0.5) & (Q[0] <= self.width - 0.5) & (Q[1] >= -0.5) & (Q[1] <= self.height - 0.5)
+        return bool(inside[0]) if single else inside
+
+    def is_world_within_fov(self, rPNn, eta):
+        """is_vector_within_fov(world_to_vector(rPNn, eta)) for the camera pose eta = [rCNn; Θnc]."""
+        return self.is_vector_within_fov(self.world_to_vector(rPNn, eta))
