@@ -1,0 +1,155 @@
+"""Geometric compatibility of measured features with predicted landmarks, and the surprisal (Lab 8 §2).
+
+``density`` is the joint predicted feature-bundle density N(μ, SᵀS) of n selected landmarks (size 2n);
+row pair (2j, 2j+1) belongs to the j-th *selected* landmark. ``Y`` is 2 × m, column i = feature i (x, y px).
+
+Individual compatibility (eqs 11–13): with the 2 × 2 marginal S_j of landmark j,
+    S_jᵀ w_ij = y_i − μ_j,   compatible ⇔ w_ijᵀ w_ij ≤ χ²_2(c),   c = 2Φ(n_σ) − 1.
+
+Joint compatibility (eqs 14–17) of an association idx (one entry per landmark: feature index or −1):
+    y_A = [y_{idx[k]}] and μ_A, S_A = marginal of the rows 2k, 2k+1 of the associated landmarks (in landmark
+    order);  compatible ⇔ w_Aᵀ w_A ≤ χ²_{2|A|}(c) with S_Aᵀ w_A = y_A − μ_A.
+
+Surprisal (handout derivation): an unassociated landmark's measurement is uniform over the image,
+U(y) = 1/|Y| with |Y| = W·H pixels, so
+    s = −log p(y) = n_U·s_U − log N(y_A; μ_A, P_A),   s_U = log W + log H;
+with nothing associated s = n·s_U and the (empty) association is vacuously compatible.
+"""
+from __future__ import annotations
+
+import json
+import numbers
+
+import numpy as np
+
+from ..camera import data_dir
+from ..gaussian import Gaussian, chi2inv, confidence_level
+
+__all__ = [
+    "individual_compatibility",
+    "individual_compatibility_matrix",
+    "landmark_marginals",
+    "joint_compatibility",
+    "uniform_surprisal",
+    "lab_test_fixture",
+]
+
+
+def _check_density(density) -> int:
+    if not isinstance(density, Gaussian):
+        raise ValueError(f"density must be a Gaussian, got {type(density).__name__}")
+    if density.size % 2:
+        raise ValueError(f"density must have even size 2·n_landmarks, got size {density.size}")
+    return density.size // 2
+
+
+def _check_Y(Y) -> np.ndarray:
+    Y = np.asarray(Y, dtype=float)
+    if Y.ndim != 2 or Y.shape[0] != 2 or Y.shape[1] == 0:
+        raise ValueError(f"Y must have shape (2, m) with m >= 1 features as columns, got {Y.shape}")
+    if not np.all(np.isfinite(Y)):
+        raise ValueError("Y must be finite (no NaN/inf)")
+    return Y
+
+
+def _check_int(value, name, upper):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= value < upper:
+        raise ValueError(f"{name} must be an integer in [0, {upper}), got {value!r}")
+    return int(value)
+
+
+def individual_compatibility(i, j, Y, density: Gaussian, n_sigma: float = 3.0) -> bool:
+    """Whether feature i (column of Y) is individually compatible with selected landmark j (eq 12)."""
+    n = _check_density(density)
+    Y = _check_Y(Y)
+    i = _check_int(i, "i", Y.shape[1])
+    j = _check_int(j, "j", n)
+    return density.marginal([2 * j, 2 * j + 1]).is_within_confidence_region(Y[:, i], n_sigma)
+
+
+def landmark_marginals(density: Gaussian):
+    """All n 2 × 2 landmark marginals at once: (μ (n, 2), S (n, 2, 2) upper-triangular), from one batched
+    QR of the column pairs S[:, [2j, 2j+1]] (the same factor ``density.marginal([2j, 2j+1])`` gives)."""
+    n = _check_density(density)
+    S = density.sqrt_cov
+    blocks = S.reshape(S.shape[0], n, 2).transpose(1, 0, 2)  # (n, 2n, 2)
+    R = np.triu(np.linalg.qr(blocks, mode="r"))[:, :2, :2]
+    return density.mean.reshape(n, 2), R
+
+
+def individual_compatibility_matrix(Y, density: Gaussian, n_sigma: float = 3.0):
+    """Squared Mahalanobis distances and the individual gate for every (feature, landmark) pair.
+
+    Returns ``(d2, compatible)``, both (m, n): d2[i, j] = w_ijᵀ w_ij, compatible = d2 ≤ χ²_2(c).
+    Vectorised: one batched QR for the n marginals, closed-form 2 × 2 triangular solves for all m·n pairs.
+    """
+    Y = _check_Y(Y)
+    mu, S = landmark_marginals(density)
+    a, b, c = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
+    if np.any(a == 0) or np.any(c == 0):
+        raise ValueError("density has a landmark with a singular 2 × 2 marginal; its gate is undefined")
+    threshold = chi2inv(confidence_level(n_sigma), 2)
+    D = Y.T[:, None, :] - mu[None, :, :]  # (m, n, 2)
+    # S_jᵀ w = d with S_jᵀ = [[a, 0], [b, c]]
+    w1 = D[..., 0] / a
+    w2 = (D[..., 1] - b * w1) / c
+    d2 = w1 * w1 + w2 * w2
+    return d2, d2 <= threshold
+
+
+def uniform_surprisal(image_size) -> float:
+    """s_U = −log U(y) = log W + log H for an image of (width, height) pixels (14.8325 for 1920 × 1440)."""
+    size = np.asarray(image_size)
+    if size.shape != (2,) or not np.all(np.isfinite(size.astype(float))) or np.any(size <= 0):
+        raise ValueError(f"image_size must be two positive numbers (width, height), got {image_size!r}")
+    return float(np.log(float(size[0])) + np.log(float(size[1])))
+
+
+def joint_compatibility(idx, sU, Y, density: Gaussian, n_sigma: float = 3.0):
+    """Joint compatibility and total surprisal of the association ``idx`` (Lab 8 eqs 14–17).
+
+    ``idx`` has one entry per selected landmark: a feature column of Y, or −1 (unassociated).
+    Returns ``(compatible, surprisal)`` with surprisal = n_U·sU − log N(y_A; μ_A, P_A); if nothing is
+    associated, ``(True, n·sU)``.
+    """
+    n = _check_density(density)
+    Y = _check_Y(Y)
+    idx_arr = np.asarray(idx)
+    if idx_arr.ndim != 1 or idx_arr.size != n:
+        raise ValueError(f"idx must have one entry per landmark (length {n}), got shape {idx_arr.shape}")
+    if idx_arr.dtype == bool or not np.issubdtype(idx_arr.dtype, np.integer):
+        raise ValueError(f"idx must contain integers (feature index or -1), got dtype {idx_arr.dtype}")
+    if np.any(idx_arr < -1) or np.any(idx_arr >= Y.shape[1]):
+        raise ValueError(f"idx entries must be -1 or a feature index in [0, {Y.shape[1]}): {idx_arr.tolist()}")
+    if isinstance(sU, bool) or not isinstance(sU, numbers.Real) or not np.isfinite(sU):
+        raise ValueError(f"sU must be a finite number, got {sU!r}")
+    associated = np.flatnonzero(idx_arr >= 0)
+    nA = associated.size
+    nU = n - nA
+    if nA == 0:
+        confidence_level(n_sigma)  # validates n_sigma
+        return True, float(nU * sU)
+    rows = (2 * associated[:, None] + np.arange(2)).ravel()
+    yA = Y[:, idx_arr[associated]].T.ravel()
+    pA = density.marginal(rows)
+    surprisal = nU * sU - pA.log_pdf(yA)
+    return bool(pA.is_within_confidence_region(yA, n_sigma)), float(surprisal)
+
+
+def lab_test_fixture() -> dict:
+    """The Lab 8 template's compatibility fixture (spec §8) from ``data/lab8_compatibility_fixture.json``:
+    ``mu_Y`` (6,), ``S_YY`` (6, 6), ``Y3`` (2, 3), ``Y13`` (2, 13), ``n_sigma``, ``sU``, ``image_size``,
+    and the ready-made densities ``density_1`` (first landmark, size 2) and ``density_3`` (size 6)."""
+    raw = json.loads((data_dir() / "lab8_compatibility_fixture.json").read_text())
+    mu, S = np.array(raw["muY"]), np.array(raw["SYY"])
+    return {
+        "mu_Y": mu,
+        "S_YY": S,
+        "Y3": np.array(raw["Y3"]),
+        "Y13": np.array(raw["Y13"]),
+        "n_sigma": float(raw["n_sigma"]),
+        "sU": float(raw["sU"]),
+        "image_size": tuple(raw["image_size"]),
+        "density_1": Gaussian(mu[:2], S[:2, :2]),
+        "density_3": Gaussian(mu, S),
+    }
