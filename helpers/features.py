@@ -12,8 +12,8 @@ Two classic corner responses (both computed by OpenCV, vectorised over the whole
     Harris:                           R = det M − k (tr M)² = λ1λ2 − k(λ1 + λ2)²   (cv2.cornerHarris)
 
 A feature is a pixel whose response exceeds ``threshold × max(R)`` (a relative quality level, as in
-cv2.goodFeaturesToTrack). Optionally only local maxima within a (2·nms_radius + 1)² window are kept
-(non-maximum suppression; the lab's detector had none, so ``nms_radius=0`` is the default). Features are
+cv2.goodFeaturesToTrack). Optionally the response map is smoothed by a Gaussian (``smoothing``) and only local
+maxima within a (2·nms_radius + 1)² window are kept (non-maximum suppression; the lab's detector had none, so ``nms_radius=0`` is the default). Features are
 returned sorted by **descending score**, ties broken by raster order (row, then column), and capped at
 ``max_features`` (the lab's ``maxNumFeatures = 10000``). Coordinates are integer pixels, OpenCV
 convention: x to the right, y down, origin at the top-left pixel.
@@ -99,7 +99,7 @@ def corner_response(image, method: str = "shi-tomasi", block_size: int = 5, aper
 
 def detect_features(image, max_features: int = 10000, method: str = "shi-tomasi", threshold: float = 0.01,
                     block_size: int = 5, aperture_size: int = 3, harris_k: float = 0.04,
-                    nms_radius: int = 0, border: int = 4) -> Features:
+                    nms_radius: int = 0, smoothing: float = 0.0, border: int = 4) -> Features:
     """Detect corner features: pixels with response R > threshold · max(R), strongest first.
 
     Parameters
@@ -112,6 +112,9 @@ def detect_features(image, max_features: int = 10000, method: str = "shi-tomasi"
     block_size, aperture_size, harris_k : passed to OpenCV (window size, Sobel size, Harris k).
     nms_radius : 0 for none (the lab); r > 0 keeps only pixels that are the maximum of their
         (2r + 1) × (2r + 1) neighbourhood (ties on a plateau all survive).
+    smoothing : σ (px) of a Gaussian applied to the response map before selection (0 = none, the lab).
+        The box-window response of a corner is a plateau about block_size wide; smoothing turns it into a
+        peak at the plateau's centre, so non-maximum suppression keeps the pixel nearest the corner.
     border : ignore this many pixels along the image border (the response there is unreliable).
 
     Returns
@@ -127,7 +130,11 @@ def detect_features(image, max_features: int = 10000, method: str = "shi-tomasi"
         raise ValueError(f"nms_radius must be a non-negative integer, got {nms_radius!r}")
     if not isinstance(border, (int, np.integer)) or border < 0:
         raise ValueError(f"border must be a non-negative integer, got {border!r}")
+    if not (isinstance(smoothing, (int, float, np.floating)) and np.isfinite(smoothing) and smoothing >= 0):
+        raise ValueError(f"smoothing must be a non-negative number of pixels, got {smoothing!r}")
     R = corner_response(image, method, block_size, aperture_size, harris_k)
+    if smoothing > 0:
+        R = cv2.GaussianBlur(R, (0, 0), float(smoothing))
     h, w = R.shape
     if 2 * border >= min(h, w):
         raise ValueError(f"border={border} leaves no pixels in an image of shape {(h, w)}")
