@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from helpers.association.snn import association_surprisal, individual_sq_mahalanobis, snn, snn_reference
+from helpers.association.compatibility import individual_compatibility_matrix, joint_compatibility
+from helpers.association.snn import snn, snn_reference
 from helpers.gaussian import Gaussian, chi2inv, confidence_level
 
 MU_Y = np.array([1658.780527, 963.3626597, 433.112825, 731.914696, 1410.293147, 577.2375667])
@@ -33,16 +34,12 @@ def density2():
     return Gaussian(MU_Y[:2], S_YY[:2, :2])
 
 
-def have_compatibility():
-    try:
-        from helpers.association import compatibility  # noqa: F401
-    except ImportError:
-        return False
-    return True
+def individual_sq_mahalanobis(density, Y):
+    return individual_compatibility_matrix(Y, density)[0].T            # (n, m)
 
 
-needs_compat = pytest.mark.skipif(not have_compatibility(),
-                                  reason="helpers.association.compatibility (issue 2) not available yet")
+def association_surprisal(idx, sU, Y, density):
+    return joint_compatibility(np.asarray(idx), sU, Y, density, 3.0)
 
 
 # ---------------------------------------------------------------------------------------------------- gate
@@ -103,9 +100,7 @@ def test_snn_one_landmark_three_features():
     assert s == pytest.approx(10.105667572052072, rel=1e-6)
 
 
-@needs_compat
 def test_surprisal_agrees_with_joint_compatibility():
-    from helpers.association.compatibility import joint_compatibility
     for density, Y in [(density6(), Y13), (density2(), Y3)]:
         for enforce in (False, True):
             idx, s = snn(density, Y, SU, enforce_joint_compatibility=enforce)
@@ -124,7 +119,6 @@ def random_scene(seed, n=4, m=300):
     return Gaussian(mu, S), np.round(Y)
 
 
-@needs_compat
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("enforce", [False, True])
 def test_vectorised_snn_equals_literal_reference(seed, enforce):
@@ -135,7 +129,6 @@ def test_vectorised_snn_equals_literal_reference(seed, enforce):
     assert s == pytest.approx(s_ref, rel=1e-9)
 
 
-@needs_compat
 def test_reference_on_fixture():
     idx, s = snn_reference(density6(), Y13, SU)
     np.testing.assert_array_equal(idx, [6, 7, 12])
@@ -207,8 +200,3 @@ def test_bad_inputs_raise_named_errors(kwargs, word):
         snn(**args)
 
 
-def test_association_surprisal_bad_idx():
-    with pytest.raises(ValueError, match="idx"):
-        association_surprisal(np.array([0, 1]), SU, Y13, density6())
-    with pytest.raises(ValueError, match="idx"):
-        association_surprisal(np.array([0, 1, 13]), SU, Y13, density6())

@@ -26,8 +26,9 @@ so for every candidate feature y_i at once (v_i solves R22ᵀ v_i = y_i − μ_{
     Δs_i = −s_U + log 2π + log|det R22| + ½ v_iᵀv_i,
     joint wᵀw = w_Aᵀw_A + v_iᵀv_i.
 
-The individual gate uses the n 2×2 marginals (one batched QR) and is evaluated for all m features and all
-n landmarks in one vectorised expression. ``snn_reference`` is the literal per-pair loop of the lab
+The individual gate is ``individual_compatibility_matrix`` (the n 2×2 marginals from one batched QR, all
+m·n pairs in one vectorised expression), and the returned surprisal is one exact ``joint_compatibility``
+evaluation of the final association. ``snn_reference`` is the literal per-pair loop of the lab
 (individual_compatibility / joint_compatibility for every pair) and serves as the oracle and the naive
 benchmark.
 """
@@ -38,9 +39,11 @@ import numbers
 import numpy as np
 from scipy import linalg
 
+from helpers.association.compatibility import (individual_compatibility, individual_compatibility_matrix,
+                                               joint_compatibility)
 from helpers.gaussian import chi2inv, confidence_level
 
-__all__ = ["snn", "snn_reference", "individual_sq_mahalanobis", "association_surprisal"]
+__all__ = ["snn", "snn_reference"]
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
 
@@ -95,51 +98,6 @@ def _r_factor(A):
 # ----------------------------------------------------------------------------------------------------
 # vectorised pieces
 # ----------------------------------------------------------------------------------------------------
-def individual_sq_mahalanobis(density, Y) -> np.ndarray:
-    """Squared Mahalanobis distance d²[j, i] = wᵀw, S_jᵀ w = y_i − μ_j, of every feature to every landmark.
-
-    S_j is the 2×2 upper-triangular square root of landmark j's marginal (QR of S[:, [2j, 2j+1]], all n
-    marginals in one batched QR). Returns shape (n, m). The individual 3σ gate is d² ≤ χ²₂(c).
-    """
-    mu, S = _check_density(density)
-    Y = _check_Y(Y)
-    n = mu.size // 2
-    cols = S.reshape(S.shape[0], n, 2).transpose(1, 0, 2)           # (n, 2n, 2): S[:, [2j, 2j+1]]
-    R = np.linalg.qr(cols, mode="r")                                 # (n, 2, 2), batched
-    r00, r01, r11 = R[:, 0, 0, None], R[:, 0, 1, None], R[:, 1, 1, None]
-    if np.any(r00 == 0) or np.any(r11 == 0):
-        raise ValueError("density has a singular 2×2 marginal; the individual gate needs invertible marginals")
-    D = Y[None, :, :] - mu.reshape(n, 2)[:, :, None]                 # (n, 2, m)
-    w0 = D[:, 0] / r00                                               # Rᵀ w = d, R upper → forward substitution
-    w1 = (D[:, 1] - r01 * w0) / r11
-    return w0 * w0 + w1 * w1
-
-
-def association_surprisal(idx, sU, Y, density, n_sigma: float = 3.0):
-    """(jointly compatible, surprisal) of an association, s = n_U·s_U − log N(y_A; μ_A, P_A).
-
-    Same definition as ``helpers.association.compatibility.joint_compatibility`` (spec §6.2), evaluated
-    with the Gaussian's own marginal / log_pdf / is_within_confidence_region.
-    """
-    mu, _ = _check_density(density)
-    Y = _check_Y(Y)
-    sU = _check_sU(sU)
-    n = mu.size // 2
-    idx = np.asarray(idx)
-    if idx.shape != (n,) or not np.issubdtype(idx.dtype, np.integer):
-        raise ValueError(f"idx must be an integer array of shape ({n},), got {idx.shape} {idx.dtype}")
-    if np.any(idx < -1) or np.any(idx >= Y.shape[1]):
-        raise ValueError(f"idx entries must be −1 or a feature column in [0, {Y.shape[1]})")
-    assoc = np.flatnonzero(idx >= 0)
-    n_u = n - assoc.size
-    if assoc.size == 0:
-        return True, n_u * sU
-    rows = np.column_stack([2 * assoc, 2 * assoc + 1]).ravel()
-    yA = Y[:, idx[assoc]].T.ravel()
-    pA = density.marginal(rows)
-    return bool(pA.is_within_confidence_region(yA, n_sigma)), float(n_u * sU - pA.log_pdf(yA))
-
-
 def snn(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool = False):
     """Surprisal nearest neighbour association (spec §7, intended semantics), vectorised over features.
 
@@ -160,12 +118,12 @@ def snn(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool 
     Y = _check_Y(Y)
     sU = _check_sU(sU)
     enforce = _check_flag(enforce_joint_compatibility)
-    gate2 = _gate(n_sigma, 2)
+    _gate(n_sigma, 2)
     n, m = mu.size // 2, Y.shape[1]
     idx = np.full(n, -1, dtype=np.intp)
     if m == 0:
         return idx, n * sU
-    compatible = individual_sq_mahalanobis(density, Y) <= gate2       # (n, m), all pairs at once
+    compatible = individual_compatibility_matrix(Y, density, n_sigma)[1].T   # (n, m), all pairs at once
     taken = np.zeros(m, dtype=bool)
     assoc: list[int] = []                                            # selected positions with idx ≥ 0
     for j in range(n):                                               # loop over landmarks, not features
@@ -200,7 +158,7 @@ def snn(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool 
             idx[j] = cand[best]
             taken[cand[best]] = True
             assoc.append(j)
-    _, s = association_surprisal(idx, sU, Y, density, n_sigma)
+    _, s = joint_compatibility(idx, sU, Y, density, n_sigma)          # one exact evaluation of s(idx)
     return idx, s
 
 
@@ -211,8 +169,6 @@ def snn_reference(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibil
 
     Same inputs and outputs as :func:`snn`; kept as the oracle for tests and the naive benchmark.
     """
-    from helpers.association.compatibility import individual_compatibility, joint_compatibility
-
     mu, _ = _check_density(density)
     Y = _check_Y(Y)
     sU = _check_sU(sU)
