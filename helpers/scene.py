@@ -41,6 +41,7 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
 from helpers.rotation import rot2rpy, rpy2rot
+from helpers.state_slam import LAB_DEMO_CAMERA_POSE, lab_demo_state
 
 __all__ = [
     "REFERENCE_POSE",
@@ -56,20 +57,10 @@ __all__ = [
 ]
 
 #: Camera pose recovered from the original photograph (spec §9.2): [rCNn (m); Θnc (rad)].
-REFERENCE_POSE = np.array([-0.00114, 0.05088, -0.44589, 0.12179, 0.06344, 1.56839])
+REFERENCE_POSE = LAB_DEMO_CAMERA_POSE.copy()
 
 #: Landmark positions of the lab demo (spec §9.3), metres, world frame; row j = landmark j.
-LAB_LANDMARKS = np.array([
-    [-0.2, 0.1, 0.0],
-    [0.0, -0.3, 0.0],
-    [0.0, 0.6, 0.0],
-    [0.4, 0.6, 0.0],
-    [0.4, -0.4, 0.0],
-    [0.088, 0.066, 0.0],
-    [0.022, 0.132, 0.0],
-    [0.297, 0.0, 0.0],
-    [0.29029, 0.09502, -0.14843],
-])
+LAB_LANDMARKS = lab_demo_state().landmark_positions().T.copy()
 
 PATTERN_SIZE = (10, 7)      # inner corners per row (x direction), per column (y direction)
 SQUARE_SIZE = 0.022         # m
@@ -348,7 +339,14 @@ def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=N
     vv = (np.arange(H) - H / 2) / (W / 2)
     shade = light * (1.0 - 0.18 * (uu[None, :] ** 2 + vv[:, None] ** 2))
     img = 18.0 + 225.0 * albedo * shade
-    img[dark] = 6.0
+    if np.any(dark):
+        # beyond the fold the lens has no image: fade to black along a smooth arc inside the fold (a real
+        # wide-angle lens shows a dark, blurred circle there), so the border makes no corners
+        fx, fy, cx, cy = camera.K[0, 0], camera.K[1, 1], camera.K[0, 2], camera.K[1, 2]
+        rd = np.hypot((np.arange(W)[None, :] - cx) / fx, (np.arange(H)[:, None] - cy) / fy)
+        r_edge = rd[dark].min() * fx - 4.0                             # px, just inside the first dark pixel
+        keep = _smoothstep01((r_edge - rd * fx) / 25.0)
+        img = 6.0 + (img - 6.0) * keep
     if blur_sigma > 0:
         img = cv2.GaussianBlur(img, (0, 0), blur_sigma)
     if noise_sigma > 0:

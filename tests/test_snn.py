@@ -108,13 +108,13 @@ def test_surprisal_agrees_with_joint_compatibility():
             assert s == pytest.approx(s_ref, rel=1e-9)
 
 
-def random_scene(seed, n=4, m=300):
+def random_scene(seed, n=4, m=120):
     rng = np.random.default_rng(seed)
     # correlated bundle: a shared 2-D offset (pose) plus independent landmark noise
     A = np.vstack([np.tile(np.eye(2) * rng.uniform(3, 8), (n, 1)).T, np.diag(rng.uniform(2, 6, 2 * n))])
     S = np.linalg.qr(A, mode="r")
     mu = rng.uniform(100, 400, 2 * n)
-    Y = np.vstack([rng.uniform(50, 450, m), rng.uniform(50, 450, m)])
+    Y = np.vstack([rng.uniform(100, 400, m), rng.uniform(100, 400, m)])
     Y[:, :n] = mu.reshape(n, 2).T + rng.normal(0, 6, (2, n))         # one plausible feature per landmark
     return Gaussian(mu, S), np.round(Y)
 
@@ -200,3 +200,81 @@ def test_bad_inputs_raise_named_errors(kwargs, word):
         snn(**args)
 
 
+
+
+# ---------------------------------------------------------------------------------------------------- lab demo
+def demo_inputs():
+    from helpers.camera import load_lab_camera
+    from helpers.features import Features
+    from helpers.state_slam import lab_demo_state
+
+    camera = load_lab_camera()
+    state = lab_demo_state()
+    h = camera.world_to_pixel(state.landmark_positions(), state.camera_pose(camera))
+    # one feature 1 px from each predicted landmark, landmarks 0 and 1 missing, plus far-away clutter
+    x = np.concatenate([[50.0, 1900.0], np.round(h[0, 2:]) + 1.0])
+    y = np.concatenate([[50.0, 1400.0], np.round(h[1, 2:])])
+    feats = Features(np.linspace(1.0, 0.5, x.size), x.astype(int), y.astype(int))
+    return camera, state, feats
+
+
+def test_association_demo_console_lines(capsys):
+    from helpers.association.lab_demo import association_demo
+
+    camera, state, feats = demo_inputs()
+    res = association_demo(None, camera, state, image_name="GOPR9348.JPG", features=feats)
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "9 features found in GOPR9348.JPG"
+    assert out[1:10] == [f"Landmark {j} is expected to be within camera FOV" for j in range(9)]
+    assert out[10] == f"Surprisal = {res.surprisal:.6g}"
+    assert out[11:13] == ["No feature associated with landmark 0.", "No feature associated with landmark 1."]
+    for k, j in enumerate(range(2, 9)):
+        i = k + 2
+        assert out[13 + k] == f"Feature {i} located at [{feats.x[i]} {feats.y[i]}] in image matches landmark {j}."
+    assert out[20] == "" and len(out) == 21
+    np.testing.assert_array_equal(res.idx, [-1, -1, 2, 3, 4, 5, 6, 7, 8])
+    jc, s = joint_compatibility(res.idx, res.sU, feats.Y, res.density)
+    assert s == pytest.approx(res.surprisal, rel=1e-12)
+
+
+def test_association_demo_with_no_landmark_in_view(capsys):
+    from helpers.association.lab_demo import association_demo
+    from helpers.state_slam import lab_demo_state
+
+    camera, state, feats = demo_inputs()
+    away = state.camera_pose(camera).copy()
+    away[3] += np.pi                                          # roll by 180°: the camera looks away from the plane
+    res = association_demo(None, camera, lab_demo_state(away), features=feats)
+    out = capsys.readouterr().out.splitlines()
+    assert all("is NOT expected" in line for line in out[1:10])
+    assert res.idx.size == 0 and res.density is None and res.surprisal == 0.0
+    assert "nothing to associate" in out[10]
+
+
+def test_association_demo_bad_inputs():
+    from helpers.association.lab_demo import association_demo
+
+    camera, state, feats = demo_inputs()
+    with pytest.raises(ValueError, match="features"):
+        association_demo(None, camera, state, features=feats.Y, verbose=False)
+    with pytest.raises(ValueError, match="image_name"):
+        association_demo(None, camera, state, image_name=3, features=feats, verbose=False)
+    with pytest.raises(ValueError, match="image"):
+        association_demo([[0]], camera, state, verbose=False)
+
+
+def test_figure1_plot_runs_and_uses_lab_colours():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from helpers.association.lab_demo import FIGURE1_COLORS, association_demo, plot_association
+
+    camera, state, feats = demo_inputs()
+    res = association_demo(None, camera, state, features=feats, verbose=False)
+    fig, ax = plot_association(np.zeros((1440, 1920), np.uint8), res)
+    colours = [tuple(line.get_color()) if not isinstance(line.get_color(), str) else line.get_color()
+               for line in ax.lines]
+    assert FIGURE1_COLORS["unassociated"] in colours and FIGURE1_COLORS["associated"] in colours
+    assert FIGURE1_COLORS["match"] in colours
+    assert [t.get_text() for t in ax.texts] == [str(j) for j in range(9)]
+    plt.close(fig)

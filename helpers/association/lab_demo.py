@@ -1,0 +1,225 @@
+"""The Lab 8 association demo (spec §9): features → FOV pre-selection → bundle density → SNN, the lab's
+console lines, its Figure 1, and a ground-truth check that the original photograph could never have.
+
+    result = association_demo(image, camera, state, image_name="rendered scene")   # prints like the lab
+    fig, ax = plot_association(image, result)                                        # Figure 1 conventions
+    table = ground_truth_check(result, camera, true_pose, true_landmarks)
+
+Console format (spec §9.6): "<m> features found in <image name>", one "Landmark j is [NOT ]expected to be
+within camera FOV" line per landmark, "Surprisal = <s>", one line per selected landmark
+("No feature associated with landmark j." or "Feature i located at [x y] in image matches landmark j."),
+then a blank line.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from helpers.association.compatibility import uniform_surprisal
+from helpers.association.snn import snn
+from helpers.features import Features, detect_features
+
+__all__ = [
+    "DEMO_DETECTOR",
+    "AssociationResult",
+    "association_demo",
+    "ground_truth_check",
+    "plot_association",
+    "FIGURE1_COLORS",
+]
+
+#: Detector settings of the workbook demo: Shi–Tomasi, the lab's cap of 10 000, 1 % quality level, a 5 × 5
+#: window; the response is smoothed (σ = 1 px) and non-maximum suppressed (7 × 7) so that one corner gives
+#: one feature at the pixel nearest to it (the lab's detector had no suppression).
+DEMO_DETECTOR = dict(max_features=10000, method="shi-tomasi", threshold=0.01, block_size=5, nms_radius=3,
+                     smoothing=1.0)
+
+#: Figure 1 colours (RGB in [0, 1]; spec §9.7).
+FIGURE1_COLORS = {
+    "feature": (127 / 255, 0.0, 0.0),        # dark red dots: all detected features
+    "associated": (0.0, 0.0, 1.0),           # blue '+', ellipse and label: landmark associated
+    "unassociated": (1.0, 0.0, 0.0),         # bright red: landmark not associated
+    "match": (0.0, 1.0, 0.0),                # green '×' on matched features
+}
+
+
+@dataclass
+class AssociationResult:
+    """Outcome of :func:`association_demo`.
+
+    features : the detected Features (Y = features.Y). in_fov : (n_L,) bool, FOV pre-selection of each
+    landmark. idx_landmarks : state indices of the selected landmarks (ascending). idx : (n_sel,) feature
+    column per selected landmark or −1. surprisal : total surprisal of the association. density : the
+    predicted bundle density of the selection (None if nothing was selected). lines : the console lines.
+    """
+
+    image_name: str
+    features: Features
+    in_fov: np.ndarray
+    idx_landmarks: np.ndarray
+    idx: np.ndarray
+    surprisal: float
+    density: object
+    sU: float
+    enforce_joint_compatibility: bool
+    lines: list = field(default_factory=list)
+
+    @property
+    def text(self) -> str:
+        return "\n".join(self.lines) + "\n"
+
+    @property
+    def matches(self) -> dict:
+        """{landmark j: feature i or −1} for the selected landmarks."""
+        return {int(j): int(i) for j, i in zip(self.idx_landmarks, self.idx)}
+
+    @property
+    def n_associated(self) -> int:
+        return int(np.sum(self.idx >= 0))
+
+    def landmark_density(self, k: int):
+        """Predicted feature density (size 2, no noise) of the k-th selected landmark: the bundle marginal."""
+        return self.density.marginal([2 * k, 2 * k + 1])
+
+
+def _console_lines(image_name, m, in_fov, idx_landmarks, idx, s, Y):
+    lines = [f"{m} features found in {image_name}"]
+    for j, inside in enumerate(in_fov):
+        lines.append(f"Landmark {j} is {'' if inside else 'NOT '}expected to be within camera FOV")
+    if idx_landmarks.size == 0:
+        lines.append("No landmark is expected to be within camera FOV: nothing to associate.")
+        lines.append("")
+        return lines
+    lines.append(f"Surprisal = {s:.6g}")
+    for j, i in zip(idx_landmarks, idx):
+        if i < 0:
+            lines.append(f"No feature associated with landmark {j}.")
+        else:
+            x, y = (int(round(v)) for v in Y[:, i])
+            lines.append(f"Feature {i} located at [{x} {y}] in image matches landmark {j}.")
+    lines.append("")
+    return lines
+
+
+def association_demo(image, camera, state, image_name: str = "rendered scene", features: Features | None = None,
+                     detector: dict | None = None, n_sigma: float = 3.0,
+                     enforce_joint_compatibility: bool = False, verbose: bool = True) -> AssociationResult:
+    """Run the lab's association demo on one image and (by default) print its console output.
+
+    1. features = detect_features(image, **detector) (default :data:`DEMO_DETECTOR`), unless ``features``
+       is given; Y = features.Y.
+    2. FOV pre-selection: landmark j is selected iff its **mean** position is within the camera's FOV at
+       the state's mean camera pose (``Camera.is_world_within_fov``); selection in ascending j.
+    3. density = state.predict_feature_bundle_density(camera, selection) (no measurement noise).
+    4. (idx, s) = snn(density, Y, s_U, n_sigma, enforce_joint_compatibility), s_U = log W + log H.
+
+    With no landmark in view the result has an empty selection, surprisal 0 and says so (no error).
+    """
+    if not isinstance(image_name, str):
+        raise ValueError(f"image_name must be a string, got {type(image_name).__name__}")
+    if features is None:
+        features = detect_features(image, **(DEMO_DETECTOR if detector is None else detector))
+    elif not isinstance(features, Features):
+        raise ValueError(f"features must be a helpers.features.Features, got {type(features).__name__}")
+    Y = features.Y
+    pose = state.camera_pose(camera)
+    in_fov = np.asarray(camera.is_world_within_fov(state.landmark_positions(), pose), dtype=bool).reshape(-1)
+    idx_landmarks = np.flatnonzero(in_fov)
+    sU = uniform_surprisal(camera.image_size)
+    if idx_landmarks.size:
+        density = state.predict_feature_bundle_density(camera, idx_landmarks)
+        idx, s = snn(density, Y, sU, n_sigma=n_sigma, enforce_joint_compatibility=enforce_joint_compatibility)
+    else:
+        density, idx, s = None, np.zeros(0, dtype=np.intp), 0.0
+    lines = _console_lines(image_name, len(features), in_fov, idx_landmarks, idx, s, Y)
+    result = AssociationResult(image_name, features, in_fov, idx_landmarks, idx, float(s), density, sU,
+                               bool(enforce_joint_compatibility), lines)
+    if verbose:
+        print(result.text, end="")
+    return result
+
+
+def ground_truth_check(result: AssociationResult, camera, true_pose, true_landmarks, tol: float = 2.0):
+    """Compare the association with the truth the renderer knows.
+
+    For every selected landmark j: its true pixel t_j = world_to_pixel(true_landmarks[:, j], true_pose), the
+    detected feature nearest to t_j (index and distance), and a verdict:
+
+      "correct"       associated with the nearest feature, which lies within ``tol`` px of t_j;
+      "correct null"  unassociated, and no feature lies within ``tol`` px of t_j (the detector found nothing);
+      "missed"        unassociated although a feature lies within ``tol`` px of t_j;
+      "wrong"         associated with another feature (or the nearest one is farther than ``tol``).
+
+    Returns a list of dicts (one per selected landmark, selection order).
+    """
+    true_landmarks = np.asarray(true_landmarks, dtype=float)
+    if true_landmarks.ndim != 2 or true_landmarks.shape[0] != 3:
+        raise ValueError(f"true_landmarks must have shape (3, n_L), got {true_landmarks.shape}")
+    if not (np.isfinite(tol) and tol > 0):
+        raise ValueError(f"tol must be a positive number of pixels, got {tol!r}")
+    Y = result.features.Y
+    rows = []
+    for j, i in zip(result.idx_landmarks, result.idx):
+        t = camera.world_to_pixel(true_landmarks[:, j], np.asarray(true_pose, dtype=float))
+        if Y.shape[1]:
+            d = np.hypot(Y[0] - t[0], Y[1] - t[1])
+            nearest, dist = int(np.argmin(d)), float(np.min(d))
+        else:
+            nearest, dist = -1, np.inf
+        there = dist <= tol
+        if i >= 0:
+            verdict = "correct" if (i == nearest and there) else "wrong"
+        else:
+            verdict = "missed" if there else "correct null"
+        rows.append({"landmark": int(j), "true_pixel": t, "nearest": nearest, "distance": dist,
+                     "associated": int(i), "verdict": verdict})
+    return rows
+
+
+def plot_association(image, result: AssociationResult, ax=None, n_sigma: float = 3.0, title: str | None = None):
+    """Figure 1 of the lab (spec §9.7) with matplotlib over the image.
+
+    All features: dark-red dots. Each selected landmark: '+' at the predicted mean and its 3σ ellipse
+    (100 points; segments drawn only where both ends are inside the image), blue if associated and
+    bright red if not, labelled with j at (μx + 20, μy − 20). Matched features: green '×'.
+    Returns (fig, ax).
+    """
+    import matplotlib.pyplot as plt
+
+    image = np.asarray(image)
+    H, W = image.shape[:2]
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(9.6, 7.2))
+    else:
+        fig = ax.figure
+    if image.ndim == 2:
+        ax.imshow(image, cmap="gray", vmin=0, vmax=255, interpolation="antialiased")
+    else:
+        ax.imshow(image[..., ::-1])                                   # BGR → RGB
+    Y = result.features.Y
+    ax.plot(Y[0], Y[1], ".", color=FIGURE1_COLORS["feature"], markersize=2.0, linestyle="none")
+    for k, (j, i) in enumerate(zip(result.idx_landmarks, result.idx)):
+        colour = FIGURE1_COLORS["associated" if i >= 0 else "unassociated"]
+        dens = result.landmark_density(k)
+        E = dens.confidence_ellipse(n_sigma, 100)
+        inside = (E[0] >= -0.5) & (E[0] <= W - 0.5) & (E[1] >= -0.5) & (E[1] <= H - 0.5)
+        seg_ok = inside[:-1] & inside[1:]
+        Ex, Ey = E[0].copy(), E[1].copy()
+        # break the curve wherever a segment has an end outside the image
+        Ex[1:][~seg_ok], Ey[1:][~seg_ok] = np.nan, np.nan
+        ax.plot(Ex, Ey, "-", color=colour, linewidth=1.5)
+        mu = dens.mean
+        ax.plot(mu[0], mu[1], "+", color=colour, markersize=12, markeredgewidth=1.5)
+        ax.text(mu[0] + 20, mu[1] - 20, str(j), color=colour, fontsize=11, fontweight="bold")
+        if i >= 0:
+            ax.plot(Y[0, i], Y[1, i], "x", color=FIGURE1_COLORS["match"], markersize=12, markeredgewidth=1.5)
+    ax.set_xlim(-0.5, W - 0.5)
+    ax.set_ylim(H - 0.5, -0.5)
+    ax.set_aspect("equal")
+    ax.grid(False)
+    ax.set_xticks([])
+    ax.set_yticks([])
+    if title:
+        ax.set_title(title)
+    return fig, ax
