@@ -1,0 +1,89 @@
+"""helpers.graph — the coursework's g2o-style graph optimiser, vectorised per edge class and sparse.
+
+Students build a graph one element at a time::
+
+    from helpers.graph import SparseOptimizer, VertexSE2, EdgeSE2
+    g = SparseOptimizer()
+    a, b = VertexSE2(0, [0, 0, 0], fixed=True), VertexSE2(1, [0.9, 0.1, 0.0])
+    g.add_vertex(a); g.add_vertex(b)
+    g.add_edge(EdgeSE2([a, b], measurement=[1, 0, 0], information=np.eye(3)))
+    g.initialize_optimization()          # builds the structure (again after any add/remove/set_fixed)
+    chi2 = g.optimize(50)                # coursework LM (spec §7.5); algorithm="gn" for Gauss–Newton
+    cov = g.compute_marginals([b])[b]    # 3×3 block of H⁻¹ at the solution
+
+Conventions: e = h(x) − z, χ² = Σ eᵀΩe, H = Σ JᵀΩJ, b = Σ JᵀΩe, dX = H⁻¹ b (LM: (H + μI)⁻¹ b), X ← X ⊞ (−dX).
+
+PROTOCOL — defining a new VERTEX class
+--------------------------------------
+Subclass ``BaseVertex``; set ``dimension``; if ⊞ is not plain addition, override the *vectorised*
+``oplus_batch(x, dx)`` (staticmethod, arrays (V, dimension) → (V, dimension)). Extra per-vertex data (a time
+stamp, a landmark id) are ordinary attributes set in ``__init__`` after calling ``super().__init__(id, ...)``::
+
+    class VehicleVertex(VertexSE2):          # inherits dimension 3 and the ψ-wrapping oplus_batch
+        def __init__(self, time, id=None, estimate=None, fixed=False):
+            super().__init__(id, estimate, fixed)
+            self.time = float(time)
+
+Ids are allocated per class from 0 when not given; a graph rejects a second vertex with the same (class, id).
+
+PROTOCOL — defining a new EDGE class
+------------------------------------
+Subclass ``BaseEdge`` and set, at class level,
+
+    vertex_types           tuple with one vertex class per slot (any number of slots; subclasses accepted)
+    measurement_dimension  m
+    parameters             optional dict name -> default, one value per edge (shape = the default's shape);
+                           becomes a constructor keyword, an attribute (``edge.dt``) and ``set_parameter``
+    evaluate(states, z, params, jacobians=True)   staticmethod, the ONLY implementation of the model:
+        states  list, states[k] is the (E, d_k) array of the estimates in slot k
+        z       (E, m) measurements;  params {name: (E, *shape)}
+        returns (e, jac): e (E, m) = h(x) − z (wrap angular components!), and jac = [J_0, J_1, ...] with
+                J_k = ∂e/∂(⊞-update of vertex k), shape (E, m, d_k) — or None when ``jacobians`` is False.
+    Write it with array operations only (no loop over E). Test J against central differences through ⊞.
+
+Example — the DriveBot velocity-form kinematics edge with a per-edge time step::
+
+    class VehicleKinematicsEdge(BaseEdge):
+        vertex_types = (VertexSE2, VertexSE2)
+        measurement_dimension = 3
+        parameters = {"dt": 0.1}
+
+        @staticmethod
+        def evaluate(states, z, params, jacobians=True):
+            xk, xn = states
+            dt = params["dt"]
+            c, s = np.cos(xk[:, 2]), np.sin(xk[:, 2])
+            dx, dy = xn[:, 0] - xk[:, 0], xn[:, 1] - xk[:, 1]
+            dpsi = wrap_angle(xn[:, 2] - xk[:, 2])
+            e = np.stack([(c * dx + s * dy) / dt, (-s * dx + c * dy) / dt, dpsi / dt], axis=1) - z
+            if not jacobians:
+                return e, None
+            jk = np.zeros((len(z), 3, 3)); jn = np.zeros((len(z), 3, 3))
+            jk[:, 0, 0], jk[:, 0, 1], jk[:, 0, 2] = -c / dt, -s / dt, (-dx * s + dy * c) / dt
+            jk[:, 1, 0], jk[:, 1, 1], jk[:, 1, 2] = s / dt, -c / dt, (-dx * c - dy * s) / dt
+            jk[:, 2, 2] = -1 / dt
+            jn[:, 0, 0], jn[:, 0, 1], jn[:, 1, 0], jn[:, 1, 1], jn[:, 2, 2] = c / dt, s / dt, -s / dt, c / dt, 1 / dt
+            return e, [jk, jn]
+
+    edge = VehicleKinematicsEdge([v_prev, v_new], measurement=u, information=np.linalg.inv(R_odo), dt=0.1)
+
+Per-object API (from ``BaseEdge``): ``set_vertex(k, v)``, ``vertex(k)``, ``vertices()``, ``set_measurement``,
+``set_information`` (must be symmetric positive definite), ``measurement``, ``information``, ``error()``,
+``jacobians()``, ``chi2()``; an edge may be edited while in a graph (values are written through to the store).
+
+The standard 2D set (``edges2d``): EdgeSE2 (between, GTSAM's BetweenFactor error), EdgeSE2Prior, EdgePositionPrior
+(GPS with ``lever_arm``), EdgeHeadingPrior (compass with ``offset``, wrapped), EdgeRangeBearing (z = (range,
+bearing)), EdgePointPrior. Errors: ``GraphError`` (a ValueError) and ``GaugeFreedomError``.
+"""
+
+from .angles import wrap_angle
+from .edge import BaseEdge, check_information
+from .edges2d import (EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
+                      EdgeSE2Prior)
+from .errors import GaugeFreedomError, GraphError
+from .optimizer import SparseOptimizer
+from .vertex import BaseVertex, VertexPointXY, VertexSE2
+
+__all__ = ["wrap_angle", "BaseVertex", "VertexSE2", "VertexPointXY", "BaseEdge", "check_information",
+           "EdgeSE2", "EdgeSE2Prior", "EdgePositionPrior", "EdgeHeadingPrior", "EdgeRangeBearing", "EdgePointPrior",
+           "SparseOptimizer", "GraphError", "GaugeFreedomError"]

@@ -1,0 +1,220 @@
+"""Edges of the graph: the per-object API over one vectorised model function per edge class.
+
+An edge class declares
+
+    vertex_types          tuple, one vertex class per slot (isinstance check; subclasses are accepted)
+    measurement_dimension m
+    parameters            dict name -> default (array-like; its shape is the per-edge shape), e.g. {"dt": 0.1}
+    evaluate(states, z, params, jacobians=True) -> (e, [J_0, J_1, ...])      (staticmethod)
+
+``evaluate`` receives ``states`` = list of (E, d_k) arrays (the estimates of slot k for E edges), ``z`` (E, m) and
+``params`` {name: (E, *shape)}; it returns the errors e (E, m) and, when ``jacobians`` is true, the Jacobians
+J_k = ∂e/∂(vertex k) of shape (E, m, d_k) with respect to the vertex's ⊞ update (else ``None``).
+Convention: e = h(x) − z, χ² = eᵀ Ω e, and the optimiser steps X ⊞ (−dX) with dX = H⁻¹ b.
+The per-object ``error()`` / ``chi2()`` call the same ``evaluate`` with E = 1.
+"""
+
+import numpy as np
+
+from .errors import GraphError
+from .vertex import BaseVertex, _as_vector
+
+__all__ = ["BaseEdge", "check_information"]
+
+
+def check_information(info, m, name="information"):
+    """Validate an m×m information matrix: finite, symmetric, positive definite. Returns (Ω, W) with Ω = WᵀW."""
+    try:
+        arr = np.array(info, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a numeric {m}x{m} matrix, got {info!r}") from None
+    if arr.ndim == 0 and m == 1:
+        arr = arr.reshape(1, 1)
+    if arr.shape != (m, m):
+        raise ValueError(f"{name} must have shape ({m}, {m}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    scale = max(1.0, float(np.max(np.abs(arr))))
+    if not np.allclose(arr, arr.T, rtol=1e-9, atol=1e-12 * scale):
+        raise ValueError(f"{name} must be symmetric, got {arr.tolist()}")
+    arr = 0.5 * (arr + arr.T)
+    try:
+        lower = np.linalg.cholesky(arr)
+    except np.linalg.LinAlgError:
+        raise ValueError(f"{name} must be positive definite (all eigenvalues > 0), got {arr.tolist()}") from None
+    if np.min(np.diag(lower)) <= 0.0:
+        raise ValueError(f"{name} must be positive definite (all eigenvalues > 0)")
+    return arr, lower.T.copy()
+
+
+class _ParameterProperty:
+    def __init__(self, name):
+        self.name = name
+
+    def __get__(self, obj, objtype=None):
+        if obj is None:
+            return self
+        return obj.parameter(self.name)
+
+    def __set__(self, obj, value):
+        obj.set_parameter(self.name, value)
+
+
+class BaseEdge:
+    """A measurement between ``len(vertex_types)`` vertices (unary, binary or more).
+
+    Per-object API: ``set_vertex(k, v)``, ``vertex(k)``, ``vertices()``, ``set_measurement(z)``,
+    ``set_information(Ω)``, ``measurement``, ``information``, per-edge parameters (constructor keywords, attribute
+    access and ``set_parameter``), ``error()``, ``jacobians()``, ``chi2()``, ``graph``.
+    """
+
+    vertex_types = ()
+    measurement_dimension = 0
+    parameters = {}
+
+    _param_defaults = {}
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        defaults = {}
+        for name, default in dict(cls.parameters).items():
+            defaults[name] = np.array(default, dtype=float)
+            if not hasattr(BaseEdge, name):
+                setattr(cls, name, _ParameterProperty(name))
+        cls._param_defaults = defaults
+
+    def __init__(self, vertices=None, measurement=None, information=None, **params):
+        cls = type(self)
+        m = int(cls.measurement_dimension)
+        if m <= 0 or len(cls.vertex_types) == 0:
+            raise TypeError(f"{cls.__name__} must define vertex_types and a positive measurement_dimension")
+        self._graph = None
+        self._row = -1
+        self._vertices = [None] * len(cls.vertex_types)
+        self._z = np.zeros(m)
+        self._info = np.eye(m)
+        self._w = np.eye(m)
+        self._params = {k: v.copy() for k, v in cls._param_defaults.items()}
+        for name, value in params.items():
+            self.set_parameter(name, value)
+        if vertices is not None:
+            if len(vertices) != len(cls.vertex_types):
+                raise ValueError(f"{cls.__name__} takes {len(cls.vertex_types)} vertices, got {len(vertices)}")
+            for k, v in enumerate(vertices):
+                self.set_vertex(k, v)
+        if measurement is not None:
+            self.set_measurement(measurement)
+        if information is not None:
+            self.set_information(information)
+
+    # ----- vectorised model (override) ----------------------------------------------------------------
+    @staticmethod
+    def evaluate(states, z, params, jacobians=True):
+        raise NotImplementedError
+
+    # ----- vertices ------------------------------------------------------------------------------------
+    def set_vertex(self, k, vertex):
+        cls = type(self)
+        if not isinstance(k, (int, np.integer)) or not 0 <= k < len(cls.vertex_types):
+            raise ValueError(f"{cls.__name__}.set_vertex: slot k must be in 0..{len(cls.vertex_types) - 1}, got {k!r}")
+        if vertex is not None:
+            if not isinstance(vertex, BaseVertex):
+                raise ValueError(f"{cls.__name__}.set_vertex: expected a vertex, got {type(vertex).__name__}")
+            want = cls.vertex_types[k]
+            if not isinstance(vertex, want):
+                raise ValueError(
+                    f"{cls.__name__}.set_vertex: slot {k} needs a {want.__name__}, got {type(vertex).__name__}")
+            if any(v is vertex for j, v in enumerate(self._vertices) if j != k):
+                raise ValueError(f"{cls.__name__}.set_vertex: the same vertex cannot occupy two slots")
+        old = self._vertices[k]
+        if self._graph is not None:
+            self._graph._edge_set_vertex(self, k, old, vertex)
+        self._vertices[k] = vertex
+
+    def vertex(self, k):
+        return self._vertices[k]
+
+    def vertices(self):
+        return list(self._vertices)
+
+    @property
+    def graph(self):
+        return self._graph
+
+    # ----- measurement, information, parameters ---------------------------------------------------------
+    @property
+    def measurement(self):
+        return self._z.copy()
+
+    def set_measurement(self, z):
+        cls = type(self)
+        self._z = _as_vector(z, cls.measurement_dimension, f"{cls.__name__}.set_measurement(z)")
+        if self._graph is not None:
+            self._graph._edge_store_row(self)
+
+    @property
+    def information(self):
+        return self._info.copy()
+
+    def set_information(self, info):
+        cls = type(self)
+        self._info, self._w = check_information(info, cls.measurement_dimension,
+                                                f"{cls.__name__}.set_information(information)")
+        if self._graph is not None:
+            self._graph._edge_store_row(self)
+
+    def parameter(self, name):
+        if name not in self._params:
+            raise ValueError(f"{type(self).__name__} has no parameter {name!r} (has {sorted(self._params)})")
+        value = self._params[name]
+        return float(value) if value.ndim == 0 else value.copy()
+
+    def set_parameter(self, name, value):
+        cls = type(self)
+        if name not in cls._param_defaults:
+            raise ValueError(f"{cls.__name__} has no parameter {name!r} (has {sorted(cls._param_defaults)})")
+        shape = cls._param_defaults[name].shape
+        try:
+            arr = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{cls.__name__} parameter {name} must be numeric, got {value!r}") from None
+        if arr.size == int(np.prod(shape)) and arr.shape != shape:
+            arr = arr.reshape(shape)
+        if arr.shape != shape:
+            raise ValueError(f"{cls.__name__} parameter {name} must have shape {shape}, got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{cls.__name__} parameter {name} must be finite, got {arr}")
+        self._params[name] = arr
+        if self._graph is not None:
+            self._graph._edge_store_row(self)
+
+    # ----- evaluation (through the vectorised model) ----------------------------------------------------
+    def _states(self):
+        cls = type(self)
+        for k, v in enumerate(self._vertices):
+            if v is None:
+                raise GraphError(f"{cls.__name__}: vertex slot {k} is not set")
+        return [v.estimate[None, :] for v in self._vertices]
+
+    def _eval(self, jacobians):
+        params = {k: v[None, ...] for k, v in self._params.items()}
+        return type(self).evaluate(self._states(), self._z[None, :], params, jacobians=jacobians)
+
+    def error(self):
+        """e = h(x) − z for the current vertex estimates, shape (m,)."""
+        e, _ = self._eval(False)
+        return e[0].copy()
+
+    def jacobians(self):
+        """[J_k = ∂e/∂(vertex k)], each (m, d_k)."""
+        _, jac = self._eval(True)
+        return [j[0].copy() for j in jac]
+
+    def chi2(self):
+        """eᵀ Ω e."""
+        e = self.error()
+        return float(e @ self._info @ e)
+
+    def __repr__(self):
+        ids = [None if v is None else v.id for v in self._vertices]
+        return f"{type(self).__name__}(vertices={ids}, z={np.round(self._z, 6).tolist()})"
