@@ -112,3 +112,101 @@ def test_protect_landmarks_restores_first_edge():
 def test_hook_constructor_bad_inputs(make, match):
     with pytest.raises(ValueError, match=match):
         make()
+
+
+# ---------------------------------------------------------------------------------------------- hooks on a graph
+def _synthetic_graph(n=120, n_landmarks=6, seed=0):
+    """A chain of SE2 poses (first fixed) driving a quarter circle, landmarks seen from every pose in range."""
+    from helpers.graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
+
+    rng = np.random.default_rng(seed)
+    g = SparseOptimizer()
+    rate = np.where((np.arange(n) > 40) & (np.arange(n) < 70), 0.5, 0.0)
+    psi = np.concatenate([[0.0], np.cumsum(0.1 * rate[:-1])])
+    x = np.concatenate([[0.0], np.cumsum(0.5 * np.cos(psi[:-1]))])
+    y = np.concatenate([[0.0], np.cumsum(0.5 * np.sin(psi[:-1]))])
+    poses = []
+    for k in range(n):
+        v = VertexSE2(estimate=[x[k], y[k], psi[k]], fixed=(k == 0))
+        v.time = 0.1 * k
+        g.add_vertex(v)
+        poses.append(v)
+        if k:
+            g.add_edge(EdgeSE2([poses[k - 1], v], measurement=[0.5, 0, 0.1 * rate[k - 1]],
+                               information=np.eye(3)))
+    lms = rng.uniform([0, -10], [max(x), max(y) + 10], (n_landmarks, 2))
+    lm_vertices = {}
+    for k in range(1, n):
+        d = lms - [x[k], y[k]]
+        r = np.hypot(d[:, 0], d[:, 1])
+        for i in np.flatnonzero(r < 25):
+            if i not in lm_vertices:
+                lm_vertices[i] = VertexPointXY(estimate=lms[i])
+                g.add_vertex(lm_vertices[i])
+            b = np.arctan2(d[i, 1], d[i, 0]) - psi[k]
+            g.add_edge(EdgeRangeBearing([poses[k], lm_vertices[i]], measurement=[r[i], b],
+                                        information=np.diag([100.0, 1000.0])))
+    return g, poses
+
+
+def _landmark_edges(g):
+    return pr.landmark_edge_table(g)
+
+
+@pytest.mark.parametrize("hook", [pr.KeepKPerVertex(k=2, seed=3), pr.KeyframePruning(stride=4),
+                                  pr.AlternateVertexPruning(stride=2)])
+def test_hooks_prune_landmark_edges_only_and_keep_graph_solvable(hook):
+    g, poses = _synthetic_graph()
+    before = _landmark_edges(g)
+    n_vertices, n_kin = g.number_of_vertices(), g.number_of_edges() - len(before["edges"])
+    removed = hook(g)
+    after = _landmark_edges(g)
+    assert removed > 0 and removed == len(before["edges"]) - len(after["edges"])
+    assert g.number_of_vertices() == n_vertices               # nothing orphaned
+    assert g.number_of_edges() - len(after["edges"]) == n_kin  # kinematics untouched
+    assert set(after["landmark"]) == set(before["landmark"])   # every landmark keeps an edge
+    assert hook(g) == 0                                        # idempotent on pruned vertices
+    assert hook.calls == 2 and hook.removed == removed
+    g.initialize_optimization()
+    assert np.isfinite(g.optimize(10))
+
+
+def test_keep_k_hook_caps_edges_per_vertex():
+    g, _ = _synthetic_graph()
+    pr.KeepKPerVertex(k=1, seed=0)(g)
+    t = _landmark_edges(g)
+    counts = np.bincount(t["vertex"] - t["vertex"].min())
+    assert counts.max() == 1
+
+
+def test_keyframe_hook_keeps_turn_vertices():
+    g, poses = _synthetic_graph()
+    before = _landmark_edges(g)
+    pr.KeyframePruning(stride=1000, rate_threshold=0.2)(g)
+    after = _landmark_edges(g)
+    base = poses[0].id
+    turn_ids = {p.id for p in poses[45:66]}
+    kept_turn = {v for v in after["vertex"].tolist() if v in turn_ids}
+    had_turn = {v for v in before["vertex"].tolist() if v in turn_ids}
+    assert kept_turn == had_turn and had_turn
+    straight_ids = {p.id for p in poses[5:35]} | {p.id for p in poses[80:115]}
+    on_straight = np.isin(after["vertex"], list(straight_ids - {base + 1000 * j for j in range(2)}))
+    # only protected edges (a landmark's single remaining edge) may survive on a straight non-keyframe
+    lm, count = np.unique(after["landmark"], return_counts=True)
+    single = set(lm[count == 1].tolist())
+    assert set(after["landmark"][on_straight].tolist()) <= single
+    assert on_straight.sum() < 0.1 * len(before["edges"])
+
+
+def test_alternate_hook_drops_odd_vertices():
+    g, _ = _synthetic_graph()
+    pr.AlternateVertexPruning(stride=2)(g)
+    t = _landmark_edges(g)
+    odd = (t["vertex"] % 2) == 1
+    # only the protected first edge of a landmark may survive on an odd vertex
+    assert odd.sum() <= len(np.unique(t["landmark"]))
+
+
+def test_landmark_edge_table_bad_input():
+    with pytest.raises(ValueError, match="system must"):
+        pr.landmark_edge_table(object())

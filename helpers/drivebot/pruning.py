@@ -158,15 +158,50 @@ def protect_landmarks(keep, landmark) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------------
 # the graph side
 # ----------------------------------------------------------------------------------------------------
-def landmark_edge_table(system):
-    """Arrays describing the system's current landmark edges, in the graph's creation order.
+def landmark_edge_table(system, dt_default=0.1):
+    """Arrays describing the current landmark edges of a graph, in the graph's creation order.
 
-    Returns a dict with ``edges`` (list of edge objects), ``vertex`` (E,) the index of each edge's vehicle
-    vertex in ``system.vehicle_vertices`` (creation order), ``landmark`` (E,) the landmark id,
-    ``headings`` (N,) the current heading estimates of all vehicle vertices and ``dt`` (N−1,) their time
-    steps.
+    ``system`` is a DriveBot SLAM system (anything with a ``graph`` attribute) or a ``SparseOptimizer``.
+    Landmark edges are the edges joining a pose vertex (``VertexSE2``) to a point vertex
+    (``VertexPointXY``). Returns a dict with
+
+    - ``edges``    list of the E edge objects;
+    - ``vertex``   (E,) the id of each edge's vehicle vertex (ids are allocated in creation order, so
+      strides over ids are strides over ticks, and they stay stable when other vertices leave the graph);
+    - ``landmark`` (E,) the id of each edge's landmark vertex;
+    - ``vehicle_ids`` (N,), ``headings`` (N,) and ``dt`` (N−1,) of the vehicle vertices in the graph, in
+      creation order (dt from the vertices' ``time`` attribute when they have one, else ``dt_default``
+      per id step); ``vertex_pos`` (E,) each edge's vehicle vertex as an index into those arrays.
     """
-    raise NotImplementedError("landmark_edge_table: waiting for the DriveBot system API")
+    from ..graph import VertexPointXY, VertexSE2
+
+    graph = getattr(system, "graph", system)
+    if not (hasattr(graph, "edges") and hasattr(graph, "vertices") and hasattr(graph, "remove_edge")):
+        raise ValueError(f"system must be a SLAM system with a graph or a SparseOptimizer, got {type(system).__name__}")
+    edges, vid, lid = [], [], []
+    for e in graph.edges():
+        vs = e.vertices()
+        if len(vs) == 2 and isinstance(vs[0], VertexSE2) and isinstance(vs[1], VertexPointXY):
+            edges.append(e)
+            vid.append(vs[0].id)
+            lid.append(vs[1].id)
+    vehicles = [v for v in graph.vertices() if isinstance(v, VertexSE2)]
+    vehicle_ids = np.array([v.id for v in vehicles], dtype=np.int64)
+    headings = np.array([v.estimate[2] for v in vehicles], dtype=float)
+    times = [getattr(v, "time", None) for v in vehicles]
+    if vehicles and all(t is not None for t in times):
+        dt = np.diff(np.asarray(times, dtype=float))
+    else:
+        dt = dt_default * np.diff(vehicle_ids).astype(float)
+    dt = np.where(dt > 0, dt, dt_default)
+    vid = np.array(vid, dtype=np.int64)
+    if np.all(np.diff(vehicle_ids) > 0):
+        pos = np.searchsorted(vehicle_ids, vid)
+    else:
+        where = {v: i for i, v in enumerate(vehicle_ids.tolist())}
+        pos = np.array([where[x] for x in vid.tolist()], dtype=np.int64)
+    return {"edges": edges, "vertex": vid, "landmark": np.array(lid, dtype=np.int64),
+            "vehicle_ids": vehicle_ids, "headings": headings, "dt": dt, "vertex_pos": pos.astype(np.int64)}
 
 
 class PruningHook:
@@ -189,7 +224,7 @@ class PruningHook:
         keep = self.select(table)
         keep = protect_landmarks(keep, table["landmark"])
         drop = np.flatnonzero(~keep)
-        graph = system.graph
+        graph = getattr(system, "graph", system)
         edges = table["edges"]
         for i in drop.tolist():
             graph.remove_edge(edges[i])
@@ -228,9 +263,9 @@ class KeyframePruning(PruningHook):
 
     def select(self, table):
         straight = straight_segment_mask(table["headings"], table["dt"], self.rate_threshold, self.window)
-        keyframe = stride_mask(np.arange(straight.size), self.stride)
+        keyframe = stride_mask(table["vehicle_ids"], self.stride)
         vertex_keeps = ~straight | keyframe
-        return vertex_keeps[table["vertex"]]
+        return vertex_keeps[table["vertex_pos"]]
 
     def describe(self):
         return f"keyframes every {self.stride} on straights"
