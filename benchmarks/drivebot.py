@@ -74,6 +74,50 @@ class GraphArrays:
         return self.poses.shape[0]
 
 
+def arrays_from_graph(graph) -> GraphArrays:
+    """Read a DriveBot SLAM graph (a ``helpers.graph.SparseOptimizer``) into :class:`GraphArrays`.
+
+    Vehicle vertices are the ``VertexSE2`` instances in creation order, landmarks the ``VertexPointXY``
+    ones; kinematics edges are the SE2→SE2 edges with a ``dt`` parameter, landmark edges the
+    SE2→PointXY ones. (Setup only — not timed.)"""
+    from helpers.graph import VertexPointXY, VertexSE2
+
+    vertices = graph.vertices()
+    poses = [v for v in vertices if isinstance(v, VertexSE2)]
+    points = [v for v in vertices if isinstance(v, VertexPointXY)]
+    pidx = {id(v): i for i, v in enumerate(poses)}
+    lidx = {id(v): i for i, v in enumerate(points)}
+    odo, rb = [], []
+    for e in graph.edges():
+        vs = e.vertices()
+        if len(vs) == 2 and isinstance(vs[0], VertexSE2) and isinstance(vs[1], VertexSE2):
+            odo.append((pidx[id(vs[0])], pidx[id(vs[1])], e.measurement, e.parameter("dt"), e.information))
+        elif len(vs) == 2 and isinstance(vs[0], VertexSE2) and isinstance(vs[1], VertexPointXY):
+            rb.append((pidx[id(vs[0])], lidx[id(vs[1])], e.measurement, e.information))
+        else:
+            raise ValueError(f"graph: unexpected edge {type(e).__name__} in a DriveBot SLAM graph")
+    return GraphArrays(
+        poses=np.array([v.estimate for v in poses]), fixed=np.array([v.fixed for v in poses]),
+        landmarks=np.array([v.estimate for v in points]).reshape(-1, 2),
+        landmark_ids=np.array([getattr(v, "landmark_id", v.id) for v in points]),
+        odo_i=np.array([o[0] for o in odo], int), odo_j=np.array([o[1] for o in odo], int),
+        odo_u=np.array([o[2] for o in odo]).reshape(-1, 3), odo_dt=np.array([o[3] for o in odo], float),
+        odo_info=np.array([o[4] for o in odo]).reshape(-1, 3, 3),
+        rb_pose=np.array([r[0] for r in rb], int), rb_lm=np.array([r[1] for r in rb], int),
+        rb_z=np.array([r[2] for r in rb]).reshape(-1, 2), rb_info=np.array([r[3] for r in rb]).reshape(-1, 2, 2))
+
+
+def set_graph_estimates(graph, arrays: GraphArrays, poses, landmarks):
+    """Write pose/landmark arrays (indexed as in ``arrays_from_graph``) back into the graph's vertices."""
+    from helpers.graph import VertexPointXY, VertexSE2
+
+    vertices = graph.vertices()
+    for v, x in zip([v for v in vertices if isinstance(v, VertexSE2)], poses):
+        v.set_estimate(x)
+    for v, m in zip([v for v in vertices if isinstance(v, VertexPointXY)], landmarks):
+        v.set_estimate(m)
+
+
 def wrap(a):
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
 
@@ -244,13 +288,154 @@ def gtsam_isam2_stream(arrays: GraphArrays):
     return total, isam.calculateEstimate()
 
 
-def gtsam_pose_marginals(graph, result, n_poses):
-    """(time, covariances (N, 3, 3)) of every pose from gtsam.Marginals."""
+def gtsam_pose_marginals(graph, result, pose_indices):
+    """(time, covariances (N, 3, 3) in the world frame) of the given poses from gtsam.Marginals.
+
+    GTSAM expresses a Pose2 covariance in the pose's tangent space (translation in the body frame);
+    it is rotated to the world frame, Σ_w = B Σ Bᵀ with B = blkdiag(R(θ), 1), after the timed section."""
     t0 = time.perf_counter()
     marginals = gtsam.Marginals(graph, result)
-    covs = np.array([marginals.marginalCovariance(X(i)) for i in range(n_poses)])
-    return time.perf_counter() - t0, covs
+    covs = np.array([marginals.marginalCovariance(X(int(i))) for i in pose_indices])
+    elapsed = time.perf_counter() - t0
+    th = np.array([result.atPose2(X(int(i))).theta() for i in pose_indices])
+    B = np.zeros((len(th), 3, 3))
+    B[:, 0, 0], B[:, 0, 1], B[:, 1, 0], B[:, 1, 1], B[:, 2, 2] = np.cos(th), -np.sin(th), np.sin(th), np.cos(th), 1
+    return elapsed, B @ covs @ np.swapaxes(B, 1, 2)
 
 
 def gtsam_chi2(graph, values) -> float:
     return 2.0 * graph.error(values)
+
+
+# ----------------------------------------------------------------------------------------------------
+# the three benchmarks
+# ----------------------------------------------------------------------------------------------------
+def _best(fn, repeats):
+    best, out = math.inf, None
+    for _ in range(repeats):
+        t, out = fn()
+        best = min(best, t)
+    return best, out
+
+
+def bench_lm(graph, repeats=3, exact=False):
+    """Benchmark 1 on a full DriveBot graph: both optimisers from the dead-reckoning initialisation."""
+    arrays = arrays_from_graph(graph)
+    p0, l0 = dead_reckoning(arrays)
+
+    def helpers_run():
+        set_graph_estimates(graph, arrays, p0, l0)
+        t0 = time.perf_counter()
+        graph.initialize_optimization()
+        chi2 = graph.optimize(50)
+        return time.perf_counter() - t0, (chi2, graph.iterations, list(graph.statistics))
+
+    t_h, (chi2_h, it_h, stats) = _best(helpers_run, repeats)
+    # time at which the helpers' LM met GTSAM's stopping rule (relative χ² decrease < 1e-5)
+    t_conv = None
+    for prev, cur in zip(stats[:-1], stats[1:]):
+        if prev["chi2"] - cur["chi2"] < 1e-5 * prev["chi2"]:
+            t_conv = cur["time"]
+            break
+    gg, values = build_gtsam(arrays, p0, l0)
+
+    def gtsam_run():
+        result, t, it = gtsam_lm(gg, values)
+        return t, (result, it)
+
+    t_g, (result, it_g) = _best(gtsam_run, repeats)
+    out = {"n_poses": arrays.n_poses, "n_landmarks": len(arrays.landmarks), "n_odo": len(arrays.odo_i),
+           "n_rb": len(arrays.rb_pose), "helpers_time": t_h, "helpers_iterations": it_h, "helpers_chi2": chi2_h,
+           "helpers_time_to_converge": t_conv, "gtsam_time": t_g, "gtsam_iterations": it_g,
+           "gtsam_chi2": gtsam_chi2(gg, result), "gtsam_graph": gg, "gtsam_result": result, "arrays": arrays}
+    if exact:
+        ge, ve = build_gtsam(arrays, p0, l0, exact=True)
+        res_e, t_e, it_e = gtsam_lm(ge, ve)
+        out.update(exact_time=t_e, exact_iterations=it_e, exact_chi2=gtsam_chi2(ge, res_e))
+    return out
+
+
+def bench_marginals(graph, lm, repeats=3):
+    """Benchmark 3: every free pose's covariance, helpers (Takahashi on the LDLᵀ factor) vs gtsam.Marginals."""
+    from helpers.graph import VertexSE2
+
+    poses = [v for v in graph.vertices() if isinstance(v, VertexSE2)]
+    free = [v for v in poses if not v.fixed]
+    idx = np.array([i for i, v in enumerate(poses) if not v.fixed])
+
+    def helpers_run():
+        t0 = time.perf_counter()
+        m = graph.compute_marginals(free)
+        return time.perf_counter() - t0, m
+
+    t_h, m = _best(helpers_run, repeats)
+    t_g, covs = _best(lambda: gtsam_pose_marginals(lm["gtsam_graph"], lm["gtsam_result"], idx), repeats)
+    H = np.array([m[v] for v in free])
+    rel = float(np.max(np.abs(H - covs)) / np.max(np.abs(covs)))
+    return {"n": len(free), "helpers_time": t_h, "gtsam_time": t_g, "max_rel_diff": rel}
+
+
+def bench_isam2(seed=0):
+    """Benchmark 2: q2_b optimising every tick (helpers) vs iSAM2 fed the same stream."""
+    from helpers.drivebot import run_question
+
+    t0 = time.perf_counter()
+    res = run_question("q2_b", seed=seed, optimization_period=1)
+    wall = time.perf_counter() - t0
+    times = np.asarray(res.optimization_times, dtype=float)
+    helpers_total = float(np.nansum(times))
+    arrays = arrays_from_graph(res.system.graph)
+    t_g, est = gtsam_isam2_stream(arrays)
+    graph, _ = build_gtsam(arrays)
+    return {"steps": arrays.n_poses, "optimisations": int(np.sum(np.isfinite(times))),
+            "helpers_total": helpers_total, "helpers_run_wall": wall, "gtsam_total": t_g,
+            "helpers_final_chi2": float(np.asarray(res.chi2_history)[-1]),
+            "gtsam_final_chi2": gtsam_chi2(graph, est)}
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--exact", action="store_true", help="also run GTSAM LM with the exact velocity-form "
+                        "kinematics error (CustomFactor) as a χ² oracle")
+    args = parser.parse_args(argv)
+    from helpers.drivebot import run_question
+
+    print(f"# DriveBot benchmark  {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC  "
+          f"seed={args.seed}  best of {args.repeats}")
+    full = run_question("q3_a", seed=args.seed)
+    graph = full.system.graph
+    lm = bench_lm(graph, args.repeats, args.exact)
+    print(f"\n(1) q3_a full graph, one LM optimisation from dead reckoning: {lm['n_poses']} poses, "
+          f"{lm['n_landmarks']} landmarks, {lm['n_odo']} kinematics + {lm['n_rb']} range-bearing edges")
+    conv = lm["helpers_time_to_converge"]
+    print(f"    helpers  optimize(50): {lm['helpers_time']:.3f} s  {lm['helpers_iterations']} iterations  "
+          f"χ² {lm['helpers_chi2']:.3f}" + (f"  (GTSAM's stopping rule met after {conv:.3f} s)" if conv else ""))
+    print(f"    GTSAM LM             : {lm['gtsam_time']:.3f} s  {lm['gtsam_iterations']} iterations  "
+          f"χ² {lm['gtsam_chi2']:.3f}  (BetweenFactorPose2 kinematics: a slightly different error model)")
+    if args.exact:
+        print(f"    GTSAM LM exact model : {lm['exact_time']:.3f} s  {lm['exact_iterations']} iterations  "
+              f"χ² {lm['exact_chi2']:.6f}  (CustomFactor; |Δχ²|/χ² = "
+              f"{abs(lm['exact_chi2'] - lm['helpers_chi2']) / lm['helpers_chi2']:.1e} vs helpers)")
+    r1 = lm["helpers_time"] / lm["gtsam_time"]
+    mg = bench_marginals(graph, lm, args.repeats)
+    print(f"\n(3) all {mg['n']} free pose marginals of the optimised q3_a graph")
+    print(f"    helpers compute_marginals: {mg['helpers_time']:.3f} s   GTSAM Marginals: {mg['gtsam_time']:.3f} s   "
+          f"max relative difference {mg['max_rel_diff']:.1e} (different kinematics error model)")
+    r3 = mg["helpers_time"] / mg["gtsam_time"]
+    it = bench_isam2(args.seed)
+    print(f"\n(2) q2_b optimising every step: {it['steps']} ticks, {it['optimisations']} optimisations")
+    print(f"    helpers Σ optimize(): {it['helpers_total']:.3f} s  (whole run incl. simulation "
+          f"{it['helpers_run_wall']:.1f} s)  final χ² {it['helpers_final_chi2']:.3f}")
+    print(f"    GTSAM iSAM2 Σ update: {it['gtsam_total']:.3f} s  final χ² {it['gtsam_final_chi2']:.3f}")
+    r2 = it["helpers_total"] / it["gtsam_total"]
+    print("\nratios helpers/GTSAM (goal ≤ 1.0 each):")
+    print(f"    (1) LM q3_a           {r1:6.2f}x  {'met' if r1 <= 1 else 'NOT met'}")
+    print(f"    (2) q2_b every step   {r2:6.2f}x  {'met' if r2 <= 1 else 'NOT met'}")
+    print(f"    (3) pose marginals    {r3:6.2f}x  {'met' if r3 <= 1 else 'NOT met'}")
+    return r1, r2, r3
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

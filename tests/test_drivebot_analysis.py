@@ -207,3 +207,24 @@ def test_tangent_bad_inputs():
         an.tangent_misalignment(np.ones((2, 2)), P, [1.0])
     with pytest.raises(ValueError, match="coincides"):
         an.tangent_misalignment(np.ones((2, 2)), P, [1.0, 1.0])
+
+
+def test_draw_factor_graph_counts_types():
+    from helpers.graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
+
+    g = SparseOptimizer()
+    p = [VertexSE2(estimate=[k, 0, 0], fixed=(k == 0)) for k in range(4)]
+    m = VertexPointXY(estimate=[2, 3])
+    for v in p + [m]:
+        g.add_vertex(v)
+    for a, b in zip(p[:-1], p[1:]):
+        g.add_edge(EdgeSE2([a, b], measurement=[1, 0, 0], information=np.eye(3)))
+    for v in p[1:]:
+        g.add_edge(EdgeRangeBearing([v, m], measurement=[3, 1], information=np.eye(2)))
+    fig, ax = plt.subplots()
+    counts = an.draw_factor_graph(ax, g)
+    assert counts == {"vertices": {"VertexSE2": 4, "VertexPointXY": 1},
+                      "edges": {"EdgeSE2": 3, "EdgeRangeBearing": 3}}
+    with pytest.raises(ValueError, match="graph must"):
+        an.draw_factor_graph(ax, object())
+    plt.close(fig)

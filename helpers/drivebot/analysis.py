@@ -25,7 +25,7 @@ from ..gaussian import chi2inv, confidence_level
 
 __all__ = ["chi2_dof", "chi2_interval", "chi2_within", "covariance_determinants", "determinant_table",
            "find_loop_closure", "position_error_rms", "masked", "ellipse_axes", "plot_covariance_ellipses",
-           "tangent_misalignment", "fit_tangent_centre", "graph_dof_counts"]
+           "tangent_misalignment", "fit_tangent_centre", "graph_dof_counts", "draw_factor_graph"]
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -269,3 +269,63 @@ def fit_tangent_centre(points, P) -> np.ndarray:
     rhs = w * np.sum(u * points, axis=1)
     centre, *_ = np.linalg.lstsq(A, rhs, rcond=None)
     return centre
+
+
+# ----------------------------------------------------------------------------------------------------
+# drawing the factor graph
+# ----------------------------------------------------------------------------------------------------
+def draw_factor_graph(ax, graph, colors=None):
+    """Draw ``graph`` as a factor graph: pose vertices (``VertexSE2``) in creation order along a line,
+    point vertices (``VertexPointXY``) above them (each at the mean position of the poses observing it),
+    one small black square per edge at the centroid of its vertices, joined to each of them.
+
+    Returns {"vertices": {class name: count}, "edges": {class name: count}} (what was drawn)."""
+    from matplotlib.collections import LineCollection
+
+    from ..graph import VertexPointXY, VertexSE2
+
+    if not (hasattr(graph, "vertices") and hasattr(graph, "edges")):
+        raise ValueError(f"graph must be a SparseOptimizer, got {type(graph).__name__}")
+    colors = {"pose": "#1f77b4", "landmark": "#ff7f0e", "factor": "k"} if colors is None else colors
+    vertices = graph.vertices()
+    poses = [v for v in vertices if isinstance(v, VertexSE2)]
+    points = [v for v in vertices if isinstance(v, VertexPointXY)]
+    pos = {}
+    for i, v in enumerate(poses):
+        pos[id(v)] = (float(i), 0.0)
+    edges = graph.edges()
+    # landmark x = mean index of the poses that observe it; alternate heights to separate neighbours
+    for j, m in enumerate(points):
+        xs = [pos[id(u)][0] for e in m.edges() for u in e.vertices() if id(u) in pos]
+        pos[id(m)] = (float(np.mean(xs)) if xs else float(j), 2.0 + 0.6 * (j % 2))
+    segs, fx, fy = [], [], []
+    for e in edges:
+        pts = np.array([pos[id(u)] for u in e.vertices()])
+        c = pts.mean(axis=0) if len(pts) > 1 else pts[0] + [0.0, -0.6]
+        fx.append(c[0])
+        fy.append(c[1])
+        segs.extend([[tuple(c), tuple(p)] for p in pts])
+    ax.add_collection(LineCollection(segs, colors="0.55", linewidths=0.8, zorder=1))
+    pp = np.array([pos[id(v)] for v in poses]).reshape(-1, 2)
+    fixed = np.array([v.fixed for v in poses], bool)
+    ax.scatter(pp[~fixed, 0], pp[~fixed, 1], s=160, c=colors["pose"], zorder=3, label="vehicle vertex")
+    if fixed.any():
+        ax.scatter(pp[fixed, 0], pp[fixed, 1], s=160, facecolors="white", edgecolors=colors["pose"],
+                   hatch="////", zorder=3, label="fixed vehicle vertex")
+    if points:
+        lp = np.array([pos[id(v)] for v in points])
+        ax.scatter(lp[:, 0], lp[:, 1], s=200, marker="s", c=colors["landmark"], zorder=3, label="landmark vertex")
+        for v, (x, y) in zip(points, lp):
+            ax.annotate(str(getattr(v, "landmark_id", v.id)), (x, y), ha="center", va="center", fontsize=8,
+                        zorder=4)
+    ax.scatter(fx, fy, s=22, marker="s", c=colors["factor"], zorder=2, label="edge (factor)")
+    ax.set_xlim(-1, max(len(poses), 1))
+    ax.set_ylim(-1.2, 3.3)
+    ax.set_yticks([])
+    ax.set_xlabel("vehicle vertex (tick)")
+    counts_v, counts_e = {}, {}
+    for v in vertices:
+        counts_v[type(v).__name__] = counts_v.get(type(v).__name__, 0) + 1
+    for e in edges:
+        counts_e[type(e).__name__] = counts_e.get(type(e).__name__, 0) + 1
+    return {"vertices": counts_v, "edges": counts_e}
