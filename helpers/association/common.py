@@ -1,0 +1,238 @@
+"""What every data-association algorithm shares: the problem, the result and the joint distance.
+
+The common interface (lecture L09; roles as in the lab's SNN: *landmarks choose observations*)::
+
+    association = algorithm(density, Y, **options)
+
+- ``density``: a :class:`helpers.gaussian.Gaussian` of size d·n, the joint predicted measurement of the n
+  candidate landmarks (landmark k in rows d·k … d·k+d−1) **with the full cross-covariance** (shared pose
+  uncertainty correlates the landmarks). It is the distribution of the observation each landmark would
+  produce, so it already contains the measurement noise: for a pairing (k, i) the innovation is
+  ν = y_i − μ_k and its covariance is the block P_kk of ``density.cov``.
+- ``Y``: the d×m observations, one per column.
+- the result :class:`Association` has ``idx`` with one entry per landmark: the observation column paired
+  with it, or −1 (the star: not observed / not associated). An observation is never used twice.
+
+Joint squared Mahalanobis distance of a hypothesis H = {(k₁, i₁), …, (k_a, i_a)} (Neira & Tardós 2001):
+
+    f_H = [y_{i₁} − μ_{k₁}; …; y_{i_a} − μ_{k_a}],   C_H = P[rows(H), rows(H)],   D²_H = f_Hᵀ C_H⁻¹ f_H,
+
+jointly compatible iff D²_H ≤ χ²_{d·a}(c) with c = 2Φ(n_σ) − 1 (the lab's confidence level; ``≤`` as in
+the lab). Every algorithm reports D²_H of the association it returns, so their outputs are comparable.
+"""
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+
+from helpers.gaussian import Gaussian, chi2inv, confidence_level
+
+__all__ = ["Association", "AssociationProblem", "prepare", "joint_sq_mahalanobis", "empty_association"]
+
+
+@dataclass(frozen=True)
+class Association:
+    """Result of a data-association algorithm.
+
+    Attributes
+    ----------
+    idx : int array (n,)
+        For each landmark, the observation column paired with it, or −1.
+    d2 : float
+        Joint squared Mahalanobis distance D²_H of the paired set (full cross-covariance); 0 if empty.
+    n_pairings : int
+        Number of landmarks paired with an observation.
+    jointly_compatible : bool
+        D²_H ≤ χ²_{d·n_pairings}(c) at the confidence level of ``n_sigma`` (True for no pairings).
+    algorithm : str
+        Name of the algorithm that produced the result.
+    n_sigma : float
+        Gate width used for ``jointly_compatible`` (and by the algorithm's gates, where it has one).
+    stats : dict
+        Algorithm-specific statistics (e.g. ``nodes`` for JCBB).
+    budget_exhausted : bool
+        True when a search budget cut the search short (the result is then the best found so far).
+    """
+
+    idx: np.ndarray
+    d2: float
+    n_pairings: int
+    jointly_compatible: bool
+    algorithm: str
+    n_sigma: float = 3.0
+    stats: dict = field(default_factory=dict)
+    budget_exhausted: bool = False
+
+    def pairs(self) -> np.ndarray:
+        """Array (n_pairings, 2) of [landmark, observation] rows, in landmark order."""
+        k = np.flatnonzero(self.idx >= 0)
+        return np.column_stack([k, self.idx[k]]).astype(np.intp)
+
+    def observation_labels(self, m: int) -> np.ndarray:
+        """For each of the m observations, the landmark it was paired with, or −1."""
+        if isinstance(m, bool) or not isinstance(m, numbers.Integral) or m < 0:
+            raise ValueError(f"m must be a non-negative integer, got {m!r}")
+        if np.any(self.idx >= m):
+            raise ValueError(f"m = {m} is smaller than an observation index in idx ({int(self.idx.max())})")
+        labels = np.full(int(m), -1, dtype=np.intp)
+        k = np.flatnonzero(self.idx >= 0)
+        labels[self.idx[k]] = k
+        return labels
+
+
+@dataclass(frozen=True)
+class AssociationProblem:
+    """Validated inputs plus the per-landmark quantities every algorithm needs.
+
+    mu (n, d) predicted means; P (d·n, d·n) joint covariance; Y (d, m); blocks (n, d, d) the marginal
+    covariances P_kk; ic_d2 (n, m) individual squared Mahalanobis distances d²_ki = ν_kiᵀ P_kk⁻¹ ν_ki;
+    logdet (n,) log det(2π P_kk); n_sigma and the IC threshold χ²_d(c).
+    """
+
+    mu: np.ndarray
+    P: np.ndarray
+    Y: np.ndarray
+    blocks: np.ndarray
+    ic_d2: np.ndarray
+    logdet: np.ndarray
+    n_sigma: float
+    ic_threshold: float
+
+    @property
+    def d(self) -> int:
+        return int(self.Y.shape[0])
+
+    @property
+    def n(self) -> int:
+        return int(self.mu.shape[0])
+
+    @property
+    def m(self) -> int:
+        return int(self.Y.shape[1])
+
+    def jc_threshold(self, n_pairings):
+        """χ²_{d·a}(c) for a pairings (array-friendly)."""
+        return chi2inv(confidence_level(self.n_sigma), self.d * np.asarray(n_pairings))
+
+
+def _check_int(value, name, minimum=0, allow_none=False):
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}{' or None' if allow_none else ''}, got {value!r}")
+    return int(value)
+
+
+def prepare(density, Y, n_sigma: float = 3.0) -> AssociationProblem:
+    """Validate ``(density, Y)`` for the common interface and precompute the individual distances.
+
+    Raises ValueError naming the argument when: ``density`` is not a Gaussian; ``Y`` is not a finite 2-D
+    array; ``density.size`` is not a multiple of d = Y.shape[0]; ``n_sigma`` is not positive; a landmark's
+    predicted covariance block is not positive definite. An empty observation set (m = 0, Y of shape
+    (d, 0)) is valid: every algorithm then returns all −1.
+    """
+    if not isinstance(density, Gaussian):
+        raise ValueError(f"density must be a helpers.gaussian.Gaussian, got {type(density).__name__}")
+    Y = np.asarray(Y, dtype=float)
+    if Y.ndim != 2:
+        raise ValueError(f"Y must be a 2-D array of shape (d, m) (one observation per column), got shape {Y.shape}")
+    d, m = Y.shape
+    if d == 0:
+        raise ValueError("Y must have at least one row (the observation dimension d), got shape (0, m)")
+    if not np.all(np.isfinite(Y)):
+        bad = np.flatnonzero(~np.all(np.isfinite(Y), axis=0))
+        raise ValueError(f"Y must be finite (no NaN/inf); bad columns: {bad.tolist()}")
+    if density.size % d:
+        raise ValueError(f"density has size {density.size}, which is not a multiple of the observation "
+                         f"dimension d = Y.shape[0] = {d}")
+    c = confidence_level(n_sigma)  # validates n_sigma
+    n = density.size // d
+    mu = density.mean.reshape(n, d)
+    P = density.cov
+    P = 0.5 * (P + P.T)
+    blocks = P.reshape(n, d, n, d)[np.arange(n), :, np.arange(n), :]   # (n, d, d) diagonal blocks P_kk
+    try:
+        Lb = np.linalg.cholesky(blocks)
+    except np.linalg.LinAlgError:
+        raise ValueError("density: a landmark's predicted covariance block is not positive definite "
+                         "(add measurement noise to the density)") from None
+    logdet = 2.0 * np.sum(np.log(np.diagonal(Lb, axis1=1, axis2=2)), axis=1) + d * np.log(2.0 * np.pi)
+    if m:
+        nu = Y.T[None, :, :] - mu[:, None, :]                         # (n, m, d) innovations ν_ki
+        Linv = np.linalg.inv(Lb)                                       # (n, d, d), L_k⁻¹
+        w = np.einsum("kab,kmb->kma", Linv, nu)                        # w = L_k⁻¹ ν_ki
+        ic_d2 = np.einsum("kma,kma->km", w, w)
+    else:
+        ic_d2 = np.zeros((n, 0))
+    return AssociationProblem(mu=mu, P=P, Y=Y, blocks=blocks, ic_d2=ic_d2, logdet=logdet,
+                              n_sigma=float(n_sigma), ic_threshold=float(chi2inv(c, d)))
+
+
+def joint_sq_mahalanobis(problem: AssociationProblem, idx) -> float:
+    """D²_H of the hypothesis ``idx`` (one entry per landmark, observation column or −1), from scratch."""
+    idx = np.asarray(idx)
+    k = np.flatnonzero(idx >= 0)
+    if k.size == 0:
+        return 0.0
+    d = problem.d
+    rows = (d * k[:, None] + np.arange(d)).ravel()
+    f = (problem.Y[:, idx[k]].T - problem.mu[k]).ravel()
+    L = np.linalg.cholesky(problem.P[np.ix_(rows, rows)])
+    w = np.linalg.solve(L, f)
+    return float(w @ w)
+
+
+def finish(problem: AssociationProblem, idx, algorithm: str, stats=None, budget_exhausted=False,
+           d2=None) -> Association:
+    """Wrap an ``idx`` into an :class:`Association` (joint D² computed here unless given)."""
+    idx = np.asarray(idx, dtype=np.intp).copy()
+    idx.setflags(write=False)
+    a = int(np.count_nonzero(idx >= 0))
+    d2 = joint_sq_mahalanobis(problem, idx) if d2 is None else float(d2)
+    jc = True if a == 0 else bool(d2 <= problem.jc_threshold(a))
+    return Association(idx=idx, d2=d2, n_pairings=a, jointly_compatible=jc, algorithm=algorithm,
+                       n_sigma=problem.n_sigma, stats=dict(stats or {}), budget_exhausted=bool(budget_exhausted))
+
+
+def empty_association(problem: AssociationProblem, algorithm: str, stats=None) -> Association:
+    """All landmarks unassociated (e.g. no observations)."""
+    return finish(problem, np.full(problem.n, -1), algorithm, stats=stats, d2=0.0)
+
+
+@numba.njit(cache=True)
+def _greedy_kernel(order, n_cols, allowed_flat, n_rows):
+    """Walk the flattened (row, col) pairs in ``order``; accept a pair when both are free and allowed."""
+    idx = np.full(n_rows, -1, dtype=np.int64)
+    col_used = np.zeros(n_cols, dtype=np.bool_)
+    n_free_rows = n_rows
+    n_free_cols = n_cols
+    for t in range(order.size):
+        if n_free_rows == 0 or n_free_cols == 0:
+            break
+        q = order[t]
+        if not allowed_flat[q]:
+            continue
+        r = q // n_cols
+        c = q % n_cols
+        if idx[r] < 0 and not col_used[c]:
+            idx[r] = c
+            col_used[c] = True
+            n_free_rows -= 1
+            n_free_cols -= 1
+    return idx
+
+
+def greedy_one_to_one(cost, allowed) -> np.ndarray:
+    """Global greedy one-to-one assignment: pairs in increasing ``cost`` (ties: lower landmark, then lower
+    observation index), accepted when both ends are still free and ``allowed``. cost, allowed: (n, m).
+    Returns idx (n,) with the observation of each landmark or −1.
+    """
+    cost = np.asarray(cost, dtype=float)
+    n, m = cost.shape
+    if n == 0 or m == 0:
+        return np.full(n, -1, dtype=np.intp)
+    order = np.argsort(cost.ravel(), kind="stable")
+    return _greedy_kernel(order.astype(np.int64), m, np.asarray(allowed, dtype=bool).ravel(), n).astype(np.intp)
