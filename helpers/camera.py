@@ -255,6 +255,14 @@ class Camera:
         dvv = c + 2 * v * v * c_r + 6 * p1 * v + 2 * p2 * u + 2 * s3 * v + 4 * s4 * rho * v
         return ud, vd, duu, duv, dvu, dvv
 
+    def distort(self, u, v):
+        """The lens model in normalised coordinates: (u, v) = (x/z, y/z) ↦ (u', v') (arrays broadcast)."""
+        u = np.asarray(u, dtype=float)
+        v = np.asarray(v, dtype=float)
+        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(v))):
+            raise ValueError("u and v must be finite (no NaN/inf)")
+        return self._distort(u, v, False)
+
     # -- projection ----------------------------------------------------------------------------------------
     def vector_to_pixel(self, rPCc, return_jacobian: bool = False):
         """Pixel of the camera-frame vector(s) rPCc ((3,) or (3, N)); with ``return_jacobian`` also

@@ -292,3 +292,11 @@ def test_from_xml_missing_file(tmp_path):
 def test_test_camera_file_is_well_formed(tmp_path):
     shutil.copy(data_dir() / "test_camera.xml", tmp_path / "c.xml")
     assert Camera.from_xml(tmp_path / "c.xml").image_size == (1920, 1440)
+
+
+def test_distort_public_and_bad_input(cam):
+    ud, vd = cam.distort(np.array([0.3]), np.array([-0.2]))
+    q = cam.vector_to_pixel([0.3, -0.2, 1.0])
+    np.testing.assert_allclose([cam.K[0, 0] * ud[0] + cam.K[0, 2], cam.K[1, 1] * vd[0] + cam.K[1, 2]], q, rtol=1e-14)
+    with pytest.raises(ValueError, match="u and v must be finite"):
+        cam.distort(np.nan, 0.0)
