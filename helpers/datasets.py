@@ -27,7 +27,6 @@ import numpy as np
 
 from .graph import (EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2, wrap_angle)
 from .graph.edge import BaseEdge
-from .graph.vertex import VertexPointXY as _VPXY, VertexSE2 as _VSE2
 
 __all__ = ["GraphData", "read_toro", "read_g2o", "read_victoria_park", "dataset_path", "load_dataset",
            "build_optimizer", "EdgeSE2PointXY", "pose_arrays", "DATASETS"]
@@ -42,7 +41,7 @@ class EdgeSE2PointXY(BaseEdge):
     J_x = [−R(ψ)ᵀ | [q_y, −q_x]ᵀ] with q = R(ψ)ᵀ(m − t);  J_m = R(ψ)ᵀ.
     """
 
-    vertex_types = (_VSE2, _VPXY)
+    vertex_types = (VertexSE2, VertexPointXY)
     measurement_dimension = 2
 
     @staticmethod
@@ -88,127 +87,153 @@ def _fail(path, lineno, message):
     raise ValueError(f"{path}:{lineno}: {message}")
 
 
-def _parse_numbers(path, lineno, fields, counts, tag):
-    if len(fields) - 1 != counts:
-        _fail(path, lineno, f"{tag} needs {counts} numbers, got {len(fields) - 1}")
-    try:
-        vals = [float(f) for f in fields[1:]]
-    except ValueError:
-        _fail(path, lineno, f"{tag}: not a number in {' '.join(fields[1:])!r}")
-    if not np.all(np.isfinite(vals)):
-        _fail(path, lineno, f"{tag}: non-finite value")
-    return vals
+def _scan(path, counts):
+    """Split a file into records: {tag: (line numbers, (N, counts[tag]) float array)}; strict checks.
 
-
-def _int_id(path, lineno, value, tag):
-    if value != int(value) or value < 0:
-        _fail(path, lineno, f"{tag}: ids must be non-negative integers, got {value}")
-    return int(value)
-
-
-def _check_spd(path, lineno, mat, tag, what="information"):
-    try:
-        np.linalg.cholesky(mat)
-    except np.linalg.LinAlgError:
-        _fail(path, lineno, f"{tag}: {what} matrix is not positive definite")
-
-
-def _lines(path):
+    Field counts are checked per line; numbers are converted in bulk (and only on failure line by line, to
+    report the offending line).
+    """
     path = pathlib.Path(path)
     if not path.is_file():
         raise ValueError(f"dataset file not found: {path}")
+    recs = {tag: ([], []) for tag in counts}
     with open(path, encoding="utf-8") as fh:
         for lineno, line in enumerate(fh, start=1):
             fields = line.split()
             if not fields or fields[0].startswith("#"):
                 continue
-            yield lineno, fields
+            tag = fields[0]
+            if tag not in counts:
+                _fail(path, lineno, f"unknown record {tag!r} (expected one of {', '.join(counts)})")
+            if len(fields) - 1 != counts[tag]:
+                _fail(path, lineno, f"{tag} needs {counts[tag]} numbers, got {len(fields) - 1}")
+            recs[tag][0].append(lineno)
+            recs[tag][1].append(fields[1:])
+    out = {}
+    for tag, (lines, rows) in recs.items():
+        try:
+            arr = np.array(rows, dtype=float).reshape(len(rows), counts[tag])
+        except ValueError:
+            for ln, r in zip(lines, rows):
+                try:
+                    [float(f) for f in r]
+                except ValueError:
+                    _fail(path, ln, f"{tag}: not a number in {' '.join(r)!r}")
+            raise
+        bad = ~np.isfinite(arr).all(axis=1)
+        if bad.any():
+            _fail(path, lines[int(np.argmax(bad))], f"{tag}: non-finite value")
+        out[tag] = (np.array(lines, dtype=int), arr)
+    return out
+
+
+def _ids(path, tag, lines, values, what="ids"):
+    bad = (values != np.round(values)) | (values < 0)
+    if bad.any():
+        t = int(np.argmax(bad.any(axis=1) if bad.ndim > 1 else bad))
+        _fail(path, lines[t], f"{tag}: {what} must be non-negative integers")
+    return values.astype(np.int64)
+
+
+def _check_spd_batch(path, tag, lines, mats, what="information"):
+    if len(mats) == 0:
+        return
+    eig = np.linalg.eigvalsh(mats).min(axis=1)
+    bad = ~(eig > 0)
+    if bad.any():
+        _fail(path, lines[int(np.argmax(bad))], f"{tag}: {what} matrix is not positive definite")
+
+
+def _sym3(a11, a12, a13, a22, a23, a33):
+    return np.stack([np.stack([a11, a12, a13], -1), np.stack([a12, a22, a23], -1),
+                     np.stack([a13, a23, a33], -1)], -2)
+
+
+def _merge_in_file_order(data, parts):
+    """parts: list of (line numbers, kind, ij, z, info); edges are appended in file order."""
+    if not parts:
+        return
+    lines = np.concatenate([p[0] for p in parts])
+    order = np.argsort(lines, kind="stable")
+    flat = []
+    for ln, kind, ij, z, info in parts:
+        for t in range(len(ln)):
+            flat.append((kind, int(ij[t, 0]), int(ij[t, 1]), z[t], info[t]))
+    data.edges.extend(flat[i] for i in order)
 
 
 def read_toro(path):
     """Read a TORO ``.graph`` file (VERTEX2, EDGE2, EQUIV ignored, and GTSAM's BR lines)."""
     data = GraphData(path)
-    for lineno, fields in _lines(path):
-        tag = fields[0]
-        if tag == "VERTEX2":
-            v = _parse_numbers(path, lineno, fields, 4, tag)
-            data.poses[_int_id(path, lineno, v[0], tag)] = np.array(v[1:4])
-        elif tag == "EDGE2":
-            v = _parse_numbers(path, lineno, fields, 11, tag)
-            i, j = _int_id(path, lineno, v[0], tag), _int_id(path, lineno, v[1], tag)
-            i11, i12, i22, i33, i13, i23 = v[5:11]
-            info = np.array([[i11, i12, i13], [i12, i22, i23], [i13, i23, i33]])
-            _check_spd(path, lineno, info, tag)
-            data.edges.append(("se2", i, j, np.array(v[2:5]), info))
-        elif tag == "BR":
-            v = _parse_numbers(path, lineno, fields, 6, tag)
-            i, l = _int_id(path, lineno, v[0], tag), _int_id(path, lineno, v[1], tag)
-            bearing, rng, sb, sr = v[2:6]
-            if sb <= 0 or sr <= 0:
-                _fail(path, lineno, "BR: sigmas must be positive")
-            data.edges.append(("rb", i, l, np.array([rng, bearing]), np.diag([1 / sr ** 2, 1 / sb ** 2])))
-        elif tag == "EQUIV":
-            _parse_numbers(path, lineno, fields, 2, tag)
-        else:
-            _fail(path, lineno, f"unknown record {tag!r} (expected VERTEX2, EDGE2, EQUIV or BR)")
+    rec = _scan(path, {"VERTEX2": 4, "EDGE2": 11, "EQUIV": 2, "BR": 6})
+    ln, v = rec["VERTEX2"]
+    ids = _ids(path, "VERTEX2", ln, v[:, 0])
+    data.poses = {int(i): v[t, 1:4].copy() for t, i in enumerate(ids)}
+    parts = []
+    ln, v = rec["EDGE2"]
+    ij = _ids(path, "EDGE2", ln, v[:, :2])
+    i11, i12, i22, i33, i13, i23 = v[:, 5:11].T
+    info = _sym3(i11, i12, i13, i22, i23, i33)
+    _check_spd_batch(path, "EDGE2", ln, info)
+    parts.append((ln, "se2", ij, v[:, 2:5].copy(), info))
+    ln, v = rec["BR"]
+    ij = _ids(path, "BR", ln, v[:, :2])
+    if (v[:, 4:6] <= 0).any():
+        _fail(path, ln[int(np.argmax((v[:, 4:6] <= 0).any(axis=1)))], "BR: sigmas must be positive")
+    z = np.stack([v[:, 3], v[:, 2]], axis=1)
+    info = np.zeros((len(v), 2, 2))
+    info[:, 0, 0] = 1.0 / v[:, 5] ** 2
+    info[:, 1, 1] = 1.0 / v[:, 4] ** 2
+    parts.append((ln, "rb", ij, z, info))
+    _merge_in_file_order(data, parts)
     return data
 
 
 def read_g2o(path):
     """Read a 2D g2o file (VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY, FIX)."""
     data = GraphData(path)
-    for lineno, fields in _lines(path):
-        tag = fields[0]
-        if tag == "VERTEX_SE2":
-            v = _parse_numbers(path, lineno, fields, 4, tag)
-            data.poses[_int_id(path, lineno, v[0], tag)] = np.array(v[1:4])
-        elif tag == "VERTEX_XY":
-            v = _parse_numbers(path, lineno, fields, 3, tag)
-            data.points[_int_id(path, lineno, v[0], tag)] = np.array(v[1:3])
-        elif tag == "EDGE_SE2":
-            v = _parse_numbers(path, lineno, fields, 11, tag)
-            i, j = _int_id(path, lineno, v[0], tag), _int_id(path, lineno, v[1], tag)
-            a11, a12, a13, a22, a23, a33 = v[5:11]
-            info = np.array([[a11, a12, a13], [a12, a22, a23], [a13, a23, a33]])
-            _check_spd(path, lineno, info, tag)
-            data.edges.append(("se2", i, j, np.array(v[2:5]), info))
-        elif tag == "EDGE_SE2_XY":
-            v = _parse_numbers(path, lineno, fields, 7, tag)
-            i, j = _int_id(path, lineno, v[0], tag), _int_id(path, lineno, v[1], tag)
-            a11, a12, a22 = v[4:7]
-            info = np.array([[a11, a12], [a12, a22]])
-            _check_spd(path, lineno, info, tag)
-            data.edges.append(("xy", i, j, np.array(v[2:4]), info))
-        elif tag == "FIX":
-            v = _parse_numbers(path, lineno, fields, 1, tag)
-            data.fixed.append(_int_id(path, lineno, v[0], tag))
-        else:
-            _fail(path, lineno, f"unknown record {tag!r} (expected VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY, FIX)")
+    rec = _scan(path, {"VERTEX_SE2": 4, "VERTEX_XY": 3, "EDGE_SE2": 11, "EDGE_SE2_XY": 7, "FIX": 1})
+    ln, v = rec["VERTEX_SE2"]
+    data.poses = {int(i): v[t, 1:4].copy() for t, i in enumerate(_ids(path, "VERTEX_SE2", ln, v[:, 0]))}
+    ln, v = rec["VERTEX_XY"]
+    data.points = {int(i): v[t, 1:3].copy() for t, i in enumerate(_ids(path, "VERTEX_XY", ln, v[:, 0]))}
+    ln, v = rec["FIX"]
+    data.fixed = [int(i) for i in _ids(path, "FIX", ln, v[:, 0])]
+    parts = []
+    ln, v = rec["EDGE_SE2"]
+    ij = _ids(path, "EDGE_SE2", ln, v[:, :2])
+    info = _sym3(*v[:, 5:11].T)
+    _check_spd_batch(path, "EDGE_SE2", ln, info)
+    parts.append((ln, "se2", ij, v[:, 2:5].copy(), info))
+    ln, v = rec["EDGE_SE2_XY"]
+    ij = _ids(path, "EDGE_SE2_XY", ln, v[:, :2])
+    info = np.stack([np.stack([v[:, 4], v[:, 5]], -1), np.stack([v[:, 5], v[:, 6]], -1)], -2)
+    _check_spd_batch(path, "EDGE_SE2_XY", ln, info)
+    parts.append((ln, "xy", ij, v[:, 2:4].copy(), info))
+    _merge_in_file_order(data, parts)
     return data
 
 
 def read_victoria_park(path):
     """Read GTSAM's victoria_park.txt (ODOMETRY with covariance, LANDMARK in Cartesian robot-frame coordinates)."""
     data = GraphData(path)
-    for lineno, fields in _lines(path):
-        tag = fields[0]
-        if tag == "ODOMETRY":
-            v = _parse_numbers(path, lineno, fields, 11, tag)
-            i, j = _int_id(path, lineno, v[0], tag), _int_id(path, lineno, v[1], tag)
-            cxx, cxy, cxt, cyy, cyt, ctt = v[5:11]
-            cov = np.array([[cxx, cxy, cxt], [cxy, cyy, cyt], [cxt, cyt, ctt]])
-            _check_spd(path, lineno, cov, tag, "covariance")
-            data.edges.append(("se2", i, j, np.array(v[2:5]), np.linalg.inv(cov)))
-        elif tag == "LANDMARK":
-            v = _parse_numbers(path, lineno, fields, 7, tag)
-            i, l = _int_id(path, lineno, v[0], tag), _int_id(path, lineno, v[1], tag)
-            x, y, cxx = v[2], v[3], v[4]
-            if cxx <= 0:
-                _fail(path, lineno, "LANDMARK: c_xx must be positive")
-            z = np.array([np.hypot(x, y), np.arctan2(y, x)])
-            data.edges.append(("rb", i, l, z, np.diag([1.0 / cxx, 10.0 / cxx])))
-        else:
-            _fail(path, lineno, f"unknown record {tag!r} (expected ODOMETRY or LANDMARK)")
+    rec = _scan(path, {"ODOMETRY": 11, "LANDMARK": 7})
+    parts = []
+    ln, v = rec["ODOMETRY"]
+    ij = _ids(path, "ODOMETRY", ln, v[:, :2])
+    cov = _sym3(*v[:, 5:11].T)
+    _check_spd_batch(path, "ODOMETRY", ln, cov, "covariance")
+    parts.append((ln, "se2", ij, v[:, 2:5].copy(), np.linalg.inv(cov) if len(cov) else cov))
+    ln, v = rec["LANDMARK"]
+    ij = _ids(path, "LANDMARK", ln, v[:, :2])
+    if (v[:, 4] <= 0).any():
+        _fail(path, ln[int(np.argmax(v[:, 4] <= 0))], "LANDMARK: c_xx must be positive")
+    z = np.stack([np.hypot(v[:, 2], v[:, 3]), np.arctan2(v[:, 3], v[:, 2])], axis=1)
+    info = np.zeros((len(v), 2, 2))
+    info[:, 0, 0] = 1.0 / v[:, 4]
+    info[:, 1, 1] = 10.0 / v[:, 4]
+    parts.append((ln, "rb", ij, z, info))
+    _merge_in_file_order(data, parts)
     return data
 
 
@@ -266,11 +291,17 @@ def build_optimizer(data, fix_first=True):
         opt.add_vertex(v)
         lv[lid] = v
     kinds = {"se2": (EdgeSE2, pv, pv), "rb": (EdgeRangeBearing, pv, lv), "xy": (EdgeSE2PointXY, pv, lv)}
+    grouped = {}
     for kind, i, j, z, info in data.edges:
         cls, a, b = kinds[kind]
         if i not in a or j not in b:
             raise ValueError(f"{data.source}: edge {kind} {i}-{j} refers to an unknown vertex")
-        opt.add_edge(cls([a[i], b[j]], measurement=z, information=info))
+        rows, zs, infos = grouped.setdefault(kind, ([], [], []))
+        rows.append((a[i], b[j]))
+        zs.append(z)
+        infos.append(info)
+    for kind, (rows, zs, infos) in grouped.items():  # one vectorised add per edge class (file order within it)
+        opt.add_edges(kinds[kind][0], rows, np.array(zs), np.array(infos))
     fixed = list(data.fixed)
     if fix_first and not fixed and pv:
         fixed = [min(pv)]

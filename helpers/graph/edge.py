@@ -22,8 +22,14 @@ from .vertex import BaseVertex, _as_vector
 __all__ = ["BaseEdge", "check_information"]
 
 
+_INFO_CACHE = {}
+
+
 def check_information(info, m, name="information"):
-    """Validate an m×m information matrix: finite, symmetric, positive definite. Returns (Ω, W) with Ω = WᵀW."""
+    """Validate an m×m information matrix: finite, symmetric, positive definite. Returns (Ω, W) with Ω = WᵀW.
+
+    Results are cached by value (datasets repeat the same few matrices), so validating is cheap.
+    """
     try:
         arr = np.array(info, dtype=float)
     except (TypeError, ValueError):
@@ -32,19 +38,52 @@ def check_information(info, m, name="information"):
         arr = arr.reshape(1, 1)
     if arr.shape != (m, m):
         raise ValueError(f"{name} must have shape ({m}, {m}), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    key = arr.tobytes()
+    hit = _INFO_CACHE.get(key)
+    if hit is not None:
+        return hit
+    if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite (no NaN or inf)")
-    scale = max(1.0, float(np.max(np.abs(arr))))
-    if not np.allclose(arr, arr.T, rtol=1e-9, atol=1e-12 * scale):
+    scale = max(1.0, float(np.abs(arr).max()))
+    if float(np.abs(arr - arr.T).max()) > 1e-9 * scale:
         raise ValueError(f"{name} must be symmetric, got {arr.tolist()}")
     arr = 0.5 * (arr + arr.T)
     try:
         lower = np.linalg.cholesky(arr)
     except np.linalg.LinAlgError:
         raise ValueError(f"{name} must be positive definite (all eigenvalues > 0), got {arr.tolist()}") from None
-    if np.min(np.diag(lower)) <= 0.0:
+    if not np.all(np.diag(lower) > 0.0):
         raise ValueError(f"{name} must be positive definite (all eigenvalues > 0)")
-    return arr, lower.T.copy()
+    out = (arr, lower.T.copy())
+    out[0].flags.writeable = False
+    out[1].flags.writeable = False
+    if len(_INFO_CACHE) > 4096:
+        _INFO_CACHE.clear()
+    _INFO_CACHE[key] = out
+    return out
+
+
+def check_information_batch(info, m, name="information"):
+    """Vectorised check of (E, m, m) information matrices. Returns (Ω, W) stacks with Ω_e = W_eᵀ W_e."""
+    arr = np.asarray(info, dtype=float)
+    if arr.ndim != 3 or arr.shape[1:] != (m, m):
+        raise ValueError(f"{name} must have shape (E, {m}, {m}), got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    scale = np.maximum(1.0, np.abs(arr).max(axis=(1, 2)))
+    asym = np.abs(arr - arr.transpose(0, 2, 1)).max(axis=(1, 2)) > 1e-9 * scale
+    if asym.any():
+        raise ValueError(f"{name}[{int(np.argmax(asym))}] must be symmetric")
+    arr = 0.5 * (arr + arr.transpose(0, 2, 1))
+    try:
+        lower = np.linalg.cholesky(arr)
+    except np.linalg.LinAlgError:
+        eig = np.linalg.eigvalsh(arr).min(axis=1)
+        raise ValueError(f"{name}[{int(np.argmin(eig))}] must be positive definite (all eigenvalues > 0)") from None
+    d = np.diagonal(lower, axis1=1, axis2=2)
+    if not (d > 0).all():
+        raise ValueError(f"{name}[{int(np.argmin(d.min(axis=1)))}] must be positive definite")
+    return arr, lower.transpose(0, 2, 1).copy()
 
 
 class _ParameterProperty:
@@ -92,8 +131,7 @@ class BaseEdge:
         self._row = -1
         self._vertices = [None] * len(cls.vertex_types)
         self._z = np.zeros(m)
-        self._info = np.eye(m)
-        self._w = np.eye(m)
+        self._info, self._w = check_information(np.eye(m), m)
         self._params = {k: v.copy() for k, v in cls._param_defaults.items()}
         for name, value in params.items():
             self.set_parameter(name, value)

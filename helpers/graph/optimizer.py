@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .edge import BaseEdge
+from .edge import BaseEdge, check_information_batch
 from .errors import GaugeFreedomError, GraphError
 from .linear import HessianPattern, LDLSolver, sparse_inverse_on_pattern
 from .vertex import BaseVertex
@@ -204,6 +204,86 @@ class SparseOptimizer:
         self._n_edges += 1
         self._dirty = True
         return True
+
+    def add_edges(self, edge_class, vertices, measurements, information=None, **params):
+        """Add many edges of one class at once (fast path for loaders); returns the new edge objects.
+
+        ``vertices``: E rows of ``len(edge_class.vertex_types)`` vertices already in this graph;
+        ``measurements`` (E, m); ``information`` (E, m, m) or one (m, m) for all (default I);
+        ``params``: name -> (E, *shape) or one value for all. Validation is vectorised; the result is identical
+        to adding the edges one by one, in order.
+        """
+        if not (isinstance(edge_class, type) and issubclass(edge_class, BaseEdge)):
+            raise GraphError(f"add_edges: edge_class must be a BaseEdge subclass, got {edge_class!r}")
+        nv = len(edge_class.vertex_types)
+        m = int(edge_class.measurement_dimension)
+        rows = [tuple(r) for r in vertices]
+        E = len(rows)
+        if E == 0:
+            return []
+        for t, r in enumerate(rows):
+            if len(r) != nv:
+                raise GraphError(f"add_edges: row {t} has {len(r)} vertices, {edge_class.__name__} needs {nv}")
+            for k, v in enumerate(r):
+                if not isinstance(v, edge_class.vertex_types[k]):
+                    raise GraphError(f"add_edges: row {t} slot {k} needs a {edge_class.vertex_types[k].__name__}, "
+                                     f"got {type(v).__name__}")
+                if v._graph is not self:
+                    raise GraphError(f"add_edges: row {t} slot {k}: unknown vertex {type(v).__name__} id {v.id}")
+            if nv > 1 and len({id(v) for v in r}) != nv:
+                raise GraphError(f"add_edges: row {t} uses the same vertex in two slots")
+        z = np.array(measurements, dtype=float).reshape(E, -1) if np.size(measurements) == E * m else None
+        if z is None:
+            raise ValueError(f"add_edges: measurements must have shape ({E}, {m}), got {np.shape(measurements)}")
+        if not np.isfinite(z).all():
+            raise ValueError("add_edges: measurements must be finite")
+        if information is None:
+            information = np.eye(m)
+        info = np.asarray(information, dtype=float)
+        if info.ndim == 2:
+            info = np.broadcast_to(info, (E, m, m))
+        info, w = check_information_batch(info, m, "add_edges: information")
+        pvals = {}
+        for name, default in edge_class._param_defaults.items():
+            val = np.asarray(params.pop(name, default), dtype=float)
+            if val.shape == default.shape:
+                val = np.broadcast_to(val, (E,) + default.shape)
+            if val.shape != (E,) + default.shape or not np.isfinite(val).all():
+                raise ValueError(f"add_edges: parameter {name} must be finite with shape {(E,) + default.shape}")
+            pvals[name] = np.array(val)
+        if params:
+            raise ValueError(f"add_edges: {edge_class.__name__} has no parameter(s) {sorted(params)}")
+        store = self._stores.get(edge_class)
+        if store is None:
+            store = _EdgeStore(edge_class)
+            self._stores[edge_class] = store
+        handles = np.array([[v._h for v in r] for r in rows], dtype=np.int64)
+        row0 = store.vh.extend(handles)
+        store.z.extend(z)
+        store.w.extend(w)
+        store.alive.extend(np.ones(E, dtype=bool))
+        store.seq.extend(self._edge_seq + np.arange(E))
+        for name, g in store.params.items():
+            g.extend(pvals[name])
+        self._edge_seq += E
+        out = []
+        new = edge_class.__new__
+        for t, r in enumerate(rows):
+            e = new(edge_class)
+            e._graph = self
+            e._row = row0 + t
+            e._vertices = list(r)
+            e._z = z[t]
+            e._info = info[t]
+            e._w = w[t]
+            e._params = {name: pvals[name][t] for name in pvals}
+            for v in r:
+                v._edges[e] = None
+            out.append(e)
+        store.obj.extend(out)
+        self._n_edges += E
+        self._dirty = True
+        return out
 
     def _detach_edge(self, edge):
         store = self._stores[type(edge)]

@@ -31,7 +31,7 @@ def _as_vector(value, size, name):
     if arr.shape not in ((size,), (size, 1), (1, size)):
         raise ValueError(f"{name} must have {size} elements (shape ({size},) or ({size}, 1)), got shape {arr.shape}")
     arr = arr.reshape(size)
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite (no NaN or inf), got {arr}")
     return arr
 

@@ -1,0 +1,105 @@
+"""Dataset readers: strict parsing, GTSAM-equivalent initial values and χ², load_dataset."""
+
+import numpy as np
+import pytest
+
+from helpers import datasets
+from helpers.graph import EdgeRangeBearing, EdgeSE2, VertexPointXY, VertexSE2
+
+gtsam = pytest.importorskip("gtsam", reason="the datasets ship inside the gtsam wheel")
+
+
+def _gtsam_optimum(name):
+    graph, initial = gtsam.load2D(datasets.dataset_path(name))
+    graph.add(gtsam.PriorFactorPose2(0, initial.atPose2(0), gtsam.noiseModel.Isotropic.Sigma(3, 1e-8)))
+    params = gtsam.LevenbergMarquardtParams()
+    params.setRelativeErrorTol(1e-12)
+    params.setAbsoluteErrorTol(1e-12)
+    result = gtsam.LevenbergMarquardtOptimizer(graph, initial, params).optimize()
+    return graph, initial, result
+
+
+@pytest.mark.parametrize("name", ["w100", "example"])
+def test_chi2_equals_gtsam(name):
+    graph, initial, result = _gtsam_optimum(name)
+    opt = datasets.load_dataset(name)
+    assert opt.chi2() == pytest.approx(2 * graph.error(initial), rel=1e-10)
+    chi2 = opt.optimize(100)
+    assert chi2 == pytest.approx(2 * graph.error(result), rel=1e-6)
+
+
+def test_example_contents():
+    opt = datasets.load_dataset("example")
+    pid, poses, lid, pts = datasets.pose_arrays(opt)
+    assert len(pid) == 95 and len(lid) == 24
+    assert sum(isinstance(e, EdgeRangeBearing) for e in opt.edges()) == 422
+    assert sum(isinstance(e, EdgeSE2) for e in opt.edges()) == 94
+    assert opt.vertex(0, VertexSE2).fixed and not opt.vertex(1, VertexSE2).fixed
+    g, vals = gtsam.load2D(datasets.dataset_path("example"))
+    lm = vals.atPoint2(gtsam.symbol("l", 144))
+    np.testing.assert_allclose(opt.vertex(144, VertexPointXY).estimate, lm, atol=1e-9)
+
+
+def test_victoria_park_reader_matches_load2d():
+    data = datasets.read_victoria_park(datasets.dataset_path("victoria_park"))
+    kinds = [e[0] for e in data.edges]
+    assert kinds.count("se2") == 6968 and kinds.count("rb") == 3640
+    rb = next(e for e in data.edges if e[0] == "rb")
+    assert rb[1:3] == (4, 5)
+    np.testing.assert_allclose(rb[3], [np.hypot(11.5387, -3.2007), np.arctan2(-3.2007, 11.5387)])
+    np.testing.assert_allclose(np.diag(rb[4]), [1 / 0.4, 10 / 0.4])
+    opt = datasets.build_optimizer(data)
+    graph, initial = gtsam.load2D(datasets.dataset_path("victoria_park"))
+    assert opt.chi2() == pytest.approx(2 * graph.error(initial), rel=1e-10)
+    np.testing.assert_allclose(opt.vertex(6968, VertexSE2).estimate[:2],
+                               [initial.atPose2(6968).x(), initial.atPose2(6968).y()], atol=1e-6)
+
+
+def test_toro_without_vertices_composes_odometry(tmp_path):
+    p = tmp_path / "chain.graph"
+    p.write_text("EDGE2 0 1 1 0 1.5707963267948966 1 0 1 1 0 0\nEDGE2 1 2 1 0 0 1 0 1 1 0 0\nEQUIV 0 2\n")
+    opt = datasets.build_optimizer(datasets.read_toro(p))
+    np.testing.assert_allclose(opt.vertex(2, VertexSE2).estimate, [1, 1, np.pi / 2], atol=1e-12)
+    assert opt.chi2() == pytest.approx(0.0, abs=1e-20)
+
+
+def test_g2o_reader(tmp_path):
+    p = tmp_path / "tiny.g2o"
+    p.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_XY 2 1 1\nFIX 0\n"
+                 "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\nEDGE_SE2_XY 1 2 0 1 1 0 1\n")
+    data = datasets.read_g2o(p)
+    opt = datasets.build_optimizer(data)
+    assert opt.vertex(0, VertexSE2).fixed
+    assert opt.chi2() == pytest.approx(0.0, abs=1e-20)
+    opt.initialize_optimization()
+    assert opt.optimize(5) == pytest.approx(0.0, abs=1e-20)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("VERTEX2 0 0 0\n", ":1: VERTEX2 needs 4 numbers"),
+    ("VERTEX2 0 0 0 0\nEDGE2 0 1 1 0 0 1 0 1 1 0\n", ":2: EDGE2 needs 11 numbers"),
+    ("VERTEX2 0 0 0 0\nEDGE2 0 1 1 0 x 1 0 1 1 0 0\n", ":2: EDGE2: not a number"),
+    ("EDGE2 0 1 1 0 0 1 0 1 -1 0 0\n", ":1: EDGE2: information matrix is not positive definite"),
+    ("EDGE2 0 1.5 1 0 0 1 0 1 1 0 0\n", ":1: EDGE2: ids must be non-negative integers"),
+    ("VERTEX2 0 0 0 nan\n", ":1: VERTEX2: non-finite value"),
+    ("\nPOINT 0 1\n", ":2: unknown record 'POINT'"),
+])
+def test_toro_strict_errors(tmp_path, text, message):
+    p = tmp_path / "bad.graph"
+    p.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        datasets.read_toro(p)
+
+
+def test_victoria_and_g2o_strict_errors(tmp_path):
+    p = tmp_path / "bad.txt"
+    p.write_text("ODOMETRY 0 1 1 0 0 0.0001 0 0 4e-06 0 4e-06\nLANDMARK 1 5 1 2 0.4 0\n")
+    with pytest.raises(ValueError, match=":2: LANDMARK needs 7 numbers"):
+        datasets.read_victoria_park(p)
+    p.write_text("VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 0\n")
+    with pytest.raises(ValueError, match=":2: EDGE_SE2: information matrix is not positive definite"):
+        datasets.read_g2o(p)
+    with pytest.raises(ValueError, match="not found"):
+        datasets.read_toro(tmp_path / "missing.graph")
+    with pytest.raises(ValueError, match="unknown dataset"):
+        datasets.load_dataset("intel")

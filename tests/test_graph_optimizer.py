@@ -1,0 +1,321 @@
+"""SparseOptimizer: LM / GN against a dense reference, marginals, structure semantics, gauge, bad inputs."""
+
+import numpy as np
+import pytest
+
+from helpers.graph import (BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2, EdgeSE2Prior,
+                           GaugeFreedomError, GraphError, SparseOptimizer, VertexPointXY, VertexSE2, wrap_angle)
+
+
+def small_slam(seed=0, n_poses=6, n_points=4, fix_first=True):
+    """Noisy poses on a circle, points around it, odometry + range-bearing + one GPS + one compass edge."""
+    rng = np.random.default_rng(seed)
+    ang = np.linspace(0, 1.5 * np.pi, n_poses)
+    truth = np.c_[5 * np.cos(ang), 5 * np.sin(ang), wrap_angle(ang + np.pi / 2)]
+    pts = rng.uniform(-7, 7, (n_points, 2))
+    g = SparseOptimizer()
+    poses = [VertexSE2(i, truth[i] + rng.normal(0, [0.3, 0.3, 0.1]), fixed=(fix_first and i == 0))
+             for i in range(n_poses)]
+    lms = [VertexPointXY(j, pts[j] + rng.normal(0, 0.5, 2)) for j in range(n_points)]
+    for v in poses + lms:
+        g.add_vertex(v)
+    for i in range(n_poses - 1):
+        a, b = truth[i], truth[i + 1]
+        c, s = np.cos(a[2]), np.sin(a[2])
+        d = b[:2] - a[:2]
+        z = [c * d[0] + s * d[1], -s * d[0] + c * d[1], wrap_angle(b[2] - a[2])] + rng.normal(0, 0.05, 3)
+        g.add_edge(EdgeSE2([poses[i], poses[i + 1]], measurement=z, information=np.diag([400, 400, 1000])))
+    for i in range(n_poses):
+        for j in range(n_points):
+            d = pts[j] - truth[i, :2]
+            z = [np.hypot(*d) + rng.normal(0, 0.1), wrap_angle(np.arctan2(d[1], d[0]) - truth[i, 2])]
+            g.add_edge(EdgeRangeBearing([poses[i], lms[j]], measurement=z, information=np.diag([100, 400])))
+    g.add_edge(EdgePositionPrior([poses[2]], measurement=truth[2, :2] + [0.3, -0.1], information=np.eye(2),
+                                 lever_arm=[0.5, -0.2]))
+    g.add_edge(EdgeHeadingPrior([poses[3]], measurement=wrap_angle(truth[3, 2] + 0.4), information=[[100.0]],
+                                offset=0.4))
+    return g, poses, lms
+
+
+def dense_gauss_newton(g, iters=30):
+    """Reference: dense numerical Jacobian + dense normal equations over the free vertices."""
+    free = [v for v in g.vertices() if not v.fixed]
+    edges = g.edges()
+
+    def residual():
+        r = []
+        for e in edges:
+            w = np.linalg.cholesky(e.information).T
+            r.append(w @ e.error())
+        return np.concatenate(r)
+
+    for _ in range(iters):
+        r0 = residual()
+        cols = []
+        for v in free:
+            for a in range(v.dimension):
+                x0 = v.estimate
+                dx = np.zeros(v.dimension)
+                dx[a] = 1e-7
+                v.set_estimate(x0 + dx)
+                rp = residual()
+                v.set_estimate(x0 - dx)
+                rm = residual()
+                v.set_estimate(x0)
+                cols.append((rp - rm) / 2e-7)
+        J = np.stack(cols, axis=1)
+        step = np.linalg.solve(J.T @ J, J.T @ r0)
+        k = 0
+        for v in free:
+            v.oplus(-step[k:k + v.dimension])
+            k += v.dimension
+    r = residual()
+    return float(r @ r), np.linalg.inv(J.T @ J)
+
+
+def test_lm_and_gn_reach_the_same_optimum_as_dense_reference():
+    g_lm, poses_lm, _ = small_slam()
+    g_gn, poses_gn, _ = small_slam()
+    g_ref, poses_ref, _ = small_slam()
+    g_lm.initialize_optimization()
+    g_gn.initialize_optimization()
+    chi_lm = g_lm.optimize(100, algorithm="lm")
+    chi_gn = g_gn.optimize(100, algorithm="gn")
+    chi_ref, _ = dense_gauss_newton(g_ref)
+    assert chi_lm == pytest.approx(chi_ref, rel=1e-7)
+    assert chi_gn == pytest.approx(chi_ref, rel=1e-7)
+    for a, b, c in zip(poses_lm, poses_gn, poses_ref):
+        np.testing.assert_allclose(a.estimate, c.estimate, atol=1e-6)
+        np.testing.assert_allclose(b.estimate, c.estimate, atol=1e-6)
+    assert g_lm.chi2() == pytest.approx(chi_lm, rel=1e-12)
+    assert g_lm.iterations == len(g_lm.chi2_history) > 0
+    assert all(np.diff(g_lm.chi2_history) <= 1e-9)
+
+
+def test_marginals_equal_dense_inverse():
+    g, poses, lms = small_slam(seed=1)
+    g.initialize_optimization()
+    g.optimize(50)
+    H = g.hessian().toarray()
+    np.testing.assert_allclose(H, H.T)
+    cov = np.linalg.inv(H)
+    marg = g.compute_marginals()
+    assert list(marg) == g.vertices()
+    np.testing.assert_array_equal(marg[poses[0]], np.zeros((3, 3)))  # fixed vertex
+    for v in poses[1:] + lms:
+        i, d = v.hessian_index, v.dimension
+        np.testing.assert_allclose(marg[v], cov[i:i + d, i:i + d], rtol=1e-6, atol=1e-12 * np.abs(cov).max())
+    assert poses[0].hessian_index is None
+
+
+def test_hessian_and_gradient_match_dense_jacobian():
+    g, poses, lms = small_slam(seed=2)
+    g.initialize_optimization()
+    free = [v for v in g.vertices() if not v.fixed]
+    edges = g.edges()
+
+    def residual():
+        return np.concatenate([np.linalg.cholesky(e.information).T @ e.error() for e in edges])
+
+    r0 = residual()
+    cols = []
+    for v in free:
+        for a in range(v.dimension):
+            x0 = v.estimate
+            dx = np.zeros(v.dimension)
+            dx[a] = 1e-7
+            v.set_estimate(x0 + dx)
+            rp = residual()
+            v.set_estimate(x0 - dx)
+            rm = residual()
+            v.set_estimate(x0)
+            cols.append((rp - rm) / 2e-7)
+    J = np.stack(cols, axis=1)
+    np.testing.assert_allclose(g.hessian().toarray(), J.T @ J, rtol=1e-5, atol=1e-4)
+    np.testing.assert_allclose(g.gradient(), J.T @ r0, rtol=1e-5, atol=1e-5)
+    assert g.chi2() == pytest.approx(float(r0 @ r0), rel=1e-12)
+
+
+def test_edge_class_defined_outside_the_package():
+    class OffsetPrior(BaseEdge):
+        vertex_types = (VertexPointXY,)
+        measurement_dimension = 2
+        parameters = {"shift": (0.0, 0.0)}
+
+        @staticmethod
+        def evaluate(states, z, params, jacobians=True):
+            e = states[0] + params["shift"] - z
+            return e, ([np.broadcast_to(np.eye(2), (len(z), 2, 2)).copy()] if jacobians else None)
+
+    g = SparseOptimizer()
+    p = VertexPointXY(estimate=[5, 5])
+    g.add_vertex(p)
+    g.add_edge(OffsetPrior([p], measurement=[1, 2], shift=[0.5, 0.5]))
+    g.add_edge(OffsetPrior([p], measurement=[1, 2], information=4 * np.eye(2), shift=[0.5, 0.5]))
+    g.initialize_optimization()
+    assert g.optimize(10) == pytest.approx(0.0, abs=1e-18)
+    np.testing.assert_allclose(p.estimate, [0.5, 1.5])
+
+
+def test_remove_edge_removes_orphaned_vertices_and_clears_index():
+    g = SparseOptimizer()
+    vs = [VertexSE2(i, [i, 0, 0], fixed=(i == 0)) for i in range(3)]
+    for v in vs:
+        g.add_vertex(v)
+    e01 = EdgeSE2([vs[0], vs[1]], measurement=[1, 0, 0])
+    e12 = EdgeSE2([vs[1], vs[2]], measurement=[1, 0, 0])
+    g.add_edge(e01)
+    g.add_edge(e12)
+    g.initialize_optimization()
+    assert vs[2].hessian_index == 3
+    removed = g.remove_edge(e12)
+    assert removed == [vs[2]]
+    assert g.vertices() == vs[:2] and g.edges() == [e01]
+    assert vs[2].graph is None and vs[2].hessian_index is None and vs[1].edges() == [e01]
+    np.testing.assert_allclose(vs[2].estimate, [2, 0, 0])  # keeps its last estimate
+    removed = g.remove_edge(e01)  # both ends orphaned, including the fixed one
+    assert set(removed) == {vs[0], vs[1]} and g.vertices() == [] and g.edges() == []
+    with pytest.raises(GraphError, match="not in this graph"):
+        g.remove_edge(e01)
+
+
+def test_remove_vertex_removes_its_edges():
+    g, poses, lms = small_slam(seed=3)
+    n_edges = len(g.edges())
+    k = lms[0].number_of_edges()
+    g.remove_vertex(lms[0])
+    assert lms[0] not in g.vertices() and len(g.edges()) == n_edges - k
+    g.initialize_optimization()
+    assert np.isfinite(g.optimize(20))
+
+
+def test_gauge_freedom_error_names_the_component():
+    g, poses, lms = small_slam(seed=4, fix_first=False)
+    # remove the unary edges: the whole graph floats
+    for e in g.edges():
+        if len(e.vertices()) == 1:
+            g.remove_edge(e)
+    with pytest.raises(GaugeFreedomError, match="gauge") as info:
+        g.initialize_optimization()
+    assert len(info.value.component) == len(poses) + len(lms)
+    assert "VertexSE2 0" in str(info.value)
+    assert isinstance(info.value, GraphError)
+
+
+def test_gauge_detects_a_second_floating_component():
+    g = SparseOptimizer()
+    a, b = VertexSE2(0, fixed=True), VertexSE2(1)
+    c, d = VertexSE2(2), VertexSE2(3)
+    for v in (a, b, c, d):
+        g.add_vertex(v)
+    g.add_edge(EdgeSE2([a, b], measurement=[1, 0, 0]))
+    g.add_edge(EdgeSE2([c, d], measurement=[1, 0, 0]))
+    with pytest.raises(GaugeFreedomError, match="2 vertices") as info:
+        g.initialize_optimization()
+    assert set(info.value.component) == {c, d}
+    g.add_edge(EdgeSE2Prior([c], measurement=[5, 0, 0]))
+    g.initialize_optimization()
+    assert g.optimize(20) == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(d.estimate, [6, 0, 0], atol=1e-9)
+
+
+def test_empty_free_state():
+    g = SparseOptimizer()
+    v = VertexSE2(0, [1, 2, 0], fixed=True)
+    g.add_vertex(v)
+    g.initialize_optimization()
+    assert g.dimension == 0
+    assert g.optimize(10) == 0.0
+    assert g.compute_marginals()[v].tolist() == np.zeros((3, 3)).tolist()
+    assert g.hessian().shape == (0, 0)
+
+
+def test_structure_change_requires_initialisation_and_accepts_incremental_growth():
+    g = SparseOptimizer()
+    prev = VertexSE2(0, fixed=True)
+    g.add_vertex(prev)
+    for k in range(1, 30):
+        v = VertexSE2(k, [k * 0.9, 0, 0])
+        g.add_vertex(v)
+        g.add_edge(EdgeSE2([prev, v], measurement=[1, 0, 0.01]))
+        if k % 10 == 0:
+            g.add_edge(EdgeHeadingPrior([v], measurement=0.01 * k))
+        with pytest.raises(GraphError, match="initialize_optimization"):
+            g.optimize(5)
+        g.initialize_optimization()
+        g.optimize(5)
+        prev = v
+    g.optimize(20)
+    assert g.chi2() < 1e-10
+
+
+def test_accepted_state_is_left_in_the_vertices():
+    g, poses, lms = small_slam(seed=5)
+    g.initialize_optimization()
+    chi2 = g.optimize(3)
+    assert g.chi2() == pytest.approx(chi2, rel=1e-12)
+
+
+@pytest.mark.parametrize("info", [np.array([[1.0, 0.5], [0.4, 1.0]]), np.diag([1.0, -1.0]), np.zeros((2, 2)),
+                                  np.diag([1.0, np.nan]), np.eye(3)])
+def test_bad_information(info):
+    with pytest.raises(ValueError, match="information"):
+        EdgePositionPrior(measurement=[0, 0], information=info)
+
+
+def test_bad_measurement_and_estimate():
+    with pytest.raises(ValueError, match="3 elements"):
+        EdgeSE2(measurement=[1, 2])
+    with pytest.raises(ValueError, match="finite"):
+        VertexSE2(estimate=[0, np.nan, 0])
+    v = VertexSE2()
+    with pytest.raises(ValueError, match="finite"):
+        v.set_estimate([np.inf, 0, 0])
+    with pytest.raises(ValueError, match="lever_arm"):
+        EdgePositionPrior(lever_arm=[1, 2, 3])
+    with pytest.raises(ValueError, match="no parameter"):
+        EdgePositionPrior(dt=0.1)
+
+
+def test_unknown_duplicate_and_unset_vertices():
+    g = SparseOptimizer()
+    a, b = VertexSE2(0, fixed=True), VertexSE2(1)
+    g.add_vertex(a)
+    with pytest.raises(GraphError, match="already in this graph"):
+        g.add_vertex(a)
+    with pytest.raises(GraphError, match="duplicate vertex id 0"):
+        g.add_vertex(VertexSE2(0))
+    with pytest.raises(GraphError, match="unknown vertex"):
+        g.add_edge(EdgeSE2([a, b], measurement=[1, 0, 0]))
+    e = EdgeSE2(measurement=[1, 0, 0])
+    e.set_vertex(0, a)
+    with pytest.raises(GraphError, match="slot 1 is not set"):
+        g.add_edge(e)
+    with pytest.raises(GraphError, match="slot 1 is not set"):
+        e.error()
+    with pytest.raises(ValueError, match="needs a VertexPointXY"):
+        EdgeRangeBearing().set_vertex(1, b)
+    with pytest.raises(ValueError, match="max_iterations"):
+        g.optimize(-1)
+    with pytest.raises(ValueError, match="algorithm"):
+        g.optimize(5, algorithm="newton")
+    with pytest.raises(GraphError, match="not in this graph"):
+        g.compute_marginals([b])
+
+
+def test_add_edges_bulk_equals_one_by_one():
+    g1, poses1, lms1 = small_slam(seed=6)
+    g2 = SparseOptimizer()
+    for v in g1.vertices():
+        g2.add_vertex(type(v)(v.id, v.estimate, v.fixed))
+    rb = [e for e in g1.edges() if isinstance(e, EdgeRangeBearing)]
+    other = [e for e in g1.edges() if not isinstance(e, EdgeRangeBearing)]
+    for e in other:
+        g2.add_edge(type(e)([g2.vertex(v.id, type(v)) for v in e.vertices()], e.measurement, e.information,
+                            **{k: e.parameter(k) for k in type(e)._param_defaults}))
+    g2.add_edges(EdgeRangeBearing, [[g2.vertex(v.id, type(v)) for v in e.vertices()] for e in rb],
+                 np.array([e.measurement for e in rb]), np.array([e.information for e in rb]))
+    assert g2.chi2() == pytest.approx(g1.chi2(), rel=1e-12)
+    with pytest.raises(ValueError, match="positive definite"):
+        g2.add_edges(EdgeRangeBearing, [[g2.vertex(0, VertexSE2), g2.vertex(0, VertexPointXY)]], [[1.0, 0.0]],
+                     -np.eye(2))
