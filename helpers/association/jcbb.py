@@ -401,6 +401,9 @@ def jcbb(density, Y, n_sigma: float = 3.0, max_nodes: int | None = None, trace: 
     sub = compatible[levels]                                     # (T, m)
     rows, cols = np.nonzero(sub)                                 # row-major: per level, obs ascending
     cand_ptr = np.concatenate([[0], np.cumsum(np.count_nonzero(sub, axis=1))]).astype(np.int64)
+    if levels.size == 0:
+        stats["nodes"] = 1
+        return empty_association(problem, "jcbb", stats)
     last_level = np.where(sub.any(axis=0), sub.shape[0] - 1 - np.argmax(sub[::-1], axis=0), -1)
     K = min(levels.size, m)
     thresh = np.zeros(K + 2)
