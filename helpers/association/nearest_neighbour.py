@@ -10,6 +10,9 @@ index). Cost O(n·m log(n·m)).
 - Mahalanobis NN (the IC-NN baseline of Neira & Tardós): cost d²_ki = ν_kiᵀ P_kk⁻¹ ν_ki with
   ν_ki = y_i − μ_k, gate d²_ki ≤ χ²_d(c), c = 2Φ(n_σ) − 1. Uses each pairing's uncertainty but treats the
   innovations of different pairings as independent (no cross-covariance) — hence still greedy.
+- Surprisal NN (the lab's SNN, ``helpers.association.snn``) wrapped into the common interface: greedy
+  landmark by landmark in index order, each landmark takes the free compatible observation that lowers the
+  total surprisal n_U·s_U − log N(y_A; μ_A, P_A) most (joint density of the whole bundle), or none.
 """
 from __future__ import annotations
 
@@ -18,8 +21,9 @@ import numbers
 import numpy as np
 
 from helpers.association.common import Association, empty_association, finish, greedy_one_to_one, prepare
+from helpers.association.snn import snn
 
-__all__ = ["nearest_neighbour", "mahalanobis_nn"]
+__all__ = ["nearest_neighbour", "mahalanobis_nn", "surprisal_nn"]
 
 
 def nearest_neighbour(density, Y, max_distance: float | None = None, n_sigma: float = 3.0) -> Association:
@@ -53,3 +57,17 @@ def mahalanobis_nn(density, Y, n_sigma: float = 3.0) -> Association:
     if problem.m == 0:
         return empty_association(problem, "mahalanobis_nn", stats)
     return finish(problem, greedy_one_to_one(problem.ic_d2, allowed), "mahalanobis_nn", stats)
+
+
+def surprisal_nn(density, Y, sU: float, n_sigma: float = 3.0, enforce_joint_compatibility: bool = False) -> Association:
+    """The lab's SNN (``helpers.association.snn.snn``) behind the common interface.
+
+    sU: surprisal of an unassociated landmark, log of the area over which a spurious observation is
+    uniform (image area in the lab; for metric scenes e.g. log(π r²) of the sensed disc).
+    stats: ``{"surprisal": total surprisal of the association, "sU": sU}``.
+    """
+    problem = prepare(density, Y, n_sigma)
+    if problem.d != 2:
+        raise ValueError(f"surprisal_nn needs 2-D observations (the lab's SNN), got d = {problem.d}")
+    idx, s = snn(density, problem.Y, sU, n_sigma=n_sigma, enforce_joint_compatibility=enforce_joint_compatibility)
+    return finish(problem, idx, "surprisal_nn", {"surprisal": float(s), "sU": float(sU)})

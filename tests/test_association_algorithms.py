@@ -1,0 +1,237 @@
+"""NN, Mahalanobis NN, ML, SNN wrapper, the common interface, scenarios and evaluation."""
+import numpy as np
+import pytest
+
+from helpers.association.common import Association, greedy_one_to_one, joint_sq_mahalanobis, prepare
+from helpers.association.evaluation import run_trials, score, score_many
+from helpers.association.jcbb import jcbb
+from helpers.association.maximum_likelihood import maximum_likelihood, ml_scores
+from helpers.association.nearest_neighbour import mahalanobis_nn, nearest_neighbour, surprisal_nn
+from helpers.association.scenarios import observe_points, range_bearing_scenario
+from helpers.gaussian import Gaussian, chi2inv, confidence_level
+
+ALGORITHMS = [nearest_neighbour, mahalanobis_nn, maximum_likelihood, jcbb,
+              lambda D, Y: surprisal_nn(D, Y, sU=5.0)]
+
+
+def independent(mu, sigmas):
+    """Independent isotropic 2-D landmarks: mu (n, 2), sigmas (n,)."""
+    mu = np.asarray(mu, float)
+    return Gaussian(mu.ravel(), np.diag(np.repeat(np.asarray(sigmas, float), 2)))
+
+
+def test_easy_case_every_algorithm_is_right():
+    density = independent([[0, 0], [5, 0], [0, 5]], [0.2, 0.2, 0.2])
+    Y = np.array([[5.1, 0.05], [-0.1, 0.1]]).T            # obs 0 ← landmark 1, obs 1 ← landmark 0
+    for alg in ALGORITHMS:
+        res = alg(density, Y)
+        assert isinstance(res, Association)
+        assert res.idx.tolist() == [1, 0, -1], res.algorithm
+        assert res.n_pairings == 2 and res.jointly_compatible
+        assert res.pairs().tolist() == [[0, 1], [1, 0]]
+        assert res.observation_labels(2).tolist() == [1, 0]
+
+
+def test_euclidean_ignores_uncertainty_mahalanobis_does_not():
+    # landmark 0 is very certain, landmark 1 very uncertain; the observation is nearer landmark 0 in
+    # metres but far outside its gate, and well inside landmark 1's.
+    density = independent([[0, 0], [3, 0]], [0.1, 2.0])
+    Y = np.array([[1.2, 0.0]]).T
+    assert nearest_neighbour(density, Y).idx.tolist() == [0, -1]
+    assert mahalanobis_nn(density, Y).idx.tolist() == [-1, 0]
+    assert nearest_neighbour(density, Y, max_distance=1.0).idx.tolist() == [-1, -1]
+
+
+def test_ml_log_det_prefers_the_certain_landmark():
+    # d²: 6.25 for the certain landmark, 1.36 for the uncertain one → Mahalanobis NN takes the uncertain
+    # one; the log-det term of ML (½ log det 2πP) flips the choice.
+    density = independent([[0, 0], [2, 0]], [0.1, 1.5])
+    Y = np.array([[0.25, 0.0]]).T
+    assert mahalanobis_nn(density, Y).idx.tolist() == [-1, 0]
+    assert maximum_likelihood(density, Y).idx.tolist() == [0, -1]
+    ell = ml_scores(density, Y)
+    expected = 0.5 * np.array([6.25, (1.75 / 1.5) ** 2]) + 0.5 * np.log((2 * np.pi) ** 2 * np.array([0.1, 1.5]) ** 4)
+    np.testing.assert_allclose(ell[:, 0], expected, rtol=1e-12)
+
+
+def test_ml_new_landmark_threshold():
+    density = independent([[0, 0]], [0.5])
+    Y = np.array([[1.0, 0.0]]).T                          # p(y | 0) = N(1; 0, 0.25) ≈ 0.0433 per m²
+    p = np.exp(-0.5 * 4.0) / (2 * np.pi * 0.25)
+    assert maximum_likelihood(density, Y, alpha=0.5 * p).idx.tolist() == [0]
+    assert maximum_likelihood(density, Y, alpha=2.0 * p).idx.tolist() == [-1]   # "new landmark"
+    res = maximum_likelihood(density, Y, alpha=0.5 * p)
+    assert res.stats["neg_log_alpha"] == pytest.approx(-np.log(0.5 * p))
+
+
+def test_one_to_one_and_greedy_order():
+    density = independent([[0, 0], [0.3, 0]], [0.5, 0.5])
+    Y = np.array([[0.1, 0.0]]).T                           # one observation, two close landmarks
+    for alg in ALGORITHMS:
+        res = alg(density, Y)
+        assert res.n_pairings == 1
+    # global greedy: the cheapest pair first, ties → lower landmark then lower observation
+    idx = greedy_one_to_one(np.array([[1.0, 1.0], [1.0, 0.5]]), np.ones((2, 2), bool))
+    assert idx.tolist() == [0, 1]
+    idx = greedy_one_to_one(np.array([[2.0, 1.0], [1.0, 3.0]]), np.array([[True, False], [True, True]]))
+    assert idx.tolist() == [-1, 0]
+
+
+def test_joint_distance_matches_dense_formula():
+    sc = range_bearing_scenario(seed=11, n_landmarks=40, n_visible=6)
+    res = mahalanobis_nn(sc.density, sc.Y)
+    k = np.flatnonzero(res.idx >= 0)
+    rows = (2 * k[:, None] + np.arange(2)).ravel()
+    f = (sc.Y[:, res.idx[k]].T - sc.density.mean.reshape(-1, 2)[k]).ravel()
+    C = sc.density.cov[np.ix_(rows, rows)]
+    assert res.d2 == pytest.approx(f @ np.linalg.solve(C, f), rel=1e-9)
+    assert res.jointly_compatible == (res.d2 <= chi2inv(confidence_level(3.0), 2 * k.size))
+    assert joint_sq_mahalanobis(prepare(sc.density, sc.Y), np.full(sc.n, -1)) == 0.0
+
+
+def test_empty_observations_give_all_unassociated():
+    density = independent([[0, 0], [1, 1]], [0.3, 0.3])
+    for alg in ALGORITHMS:
+        res = alg(density, np.zeros((2, 0)))
+        assert res.idx.tolist() == [-1, -1] and res.n_pairings == 0 and res.d2 == 0.0
+        assert res.observation_labels(0).size == 0
+
+
+@pytest.mark.parametrize("alg", ALGORITHMS)
+@pytest.mark.parametrize("Y, match", [
+    (np.zeros(2), "Y must be a 2-D"),
+    (np.zeros((3, 1)), "multiple of the observation dimension"),
+    (np.array([[np.inf], [0.0]]), "finite"),
+])
+def test_bad_inputs(alg, Y, match):
+    with pytest.raises(ValueError, match=match):
+        alg(independent([[0, 0], [1, 1]], [0.3, 0.3]), Y)
+
+
+def test_bad_density_and_options():
+    Y = np.zeros((2, 1))
+    with pytest.raises(ValueError, match="density must be"):
+        mahalanobis_nn(np.eye(2), Y)
+    with pytest.raises(ValueError, match="n_sigma"):
+        mahalanobis_nn(independent([[0, 0]], [1.0]), Y, n_sigma=0.0)
+    with pytest.raises(ValueError, match="max_distance"):
+        nearest_neighbour(independent([[0, 0]], [1.0]), Y, max_distance=-1.0)
+    with pytest.raises(ValueError, match="alpha"):
+        maximum_likelihood(independent([[0, 0]], [1.0]), Y, alpha=0.0)
+    singular = Gaussian(np.zeros(2), np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="positive definite"):
+        prepare(singular, Y)
+    with pytest.raises(ValueError, match="m must be"):
+        mahalanobis_nn(independent([[0, 0]], [1.0]), Y).observation_labels(-1)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# scenarios
+# ---------------------------------------------------------------------------------------------------------
+def test_observation_jacobians_match_central_differences():
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        pose = np.array([*rng.uniform(-5, 5, 2), rng.uniform(-np.pi, np.pi)])
+        lms = rng.uniform(-10, 10, (4, 2))
+        z, J_pose, J_lm = observe_points(pose, lms)
+        h = 1e-6
+        for a in range(3):
+            e = np.zeros(3)
+            e[a] = h
+            fd = (observe_points(pose + e, lms)[0] - observe_points(pose - e, lms)[0]) / (2 * h)
+            np.testing.assert_allclose(J_pose[:, :, a], fd, atol=1e-7)
+        for a in range(2):
+            e = np.zeros(2)
+            e[a] = h
+            fd = (observe_points(pose, lms + e)[0] - observe_points(pose, lms - e)[0]) / (2 * h)
+            np.testing.assert_allclose(np.broadcast_to(J_lm[:, a], fd.shape), fd, atol=1e-7)
+
+
+def test_scenario_is_seeded_and_consistent():
+    a = range_bearing_scenario(seed=4, n_clutter=3, p_detect=0.8)
+    b = range_bearing_scenario(seed=4, n_clutter=3, p_detect=0.8)
+    np.testing.assert_array_equal(a.Y, b.Y)
+    np.testing.assert_array_equal(a.truth, b.truth)
+    assert a.density.size == 2 * a.n and a.n == 150 and a.is_clutter.sum() == 3
+    # every true observation is close to the noiseless observation of its landmark from the true pose
+    k = np.flatnonzero(a.truth >= 0)
+    z, _, _ = observe_points(a.pose_true, a.landmarks_true[a.candidates[k]])
+    assert np.max(np.abs(a.Y[:, a.truth[k]].T - z)) < 0.6
+    assert np.array_equal(a.observation_truth()[a.truth[k]], k)
+    assert np.all(a.observation_truth()[a.is_clutter] == -1)
+    c = range_bearing_scenario(seed=4, n_landmarks=60, n_visible=None, max_range=8.0, candidate_range=12.0)
+    assert c.n < 60 and c.density.size == 2 * c.n
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({}, "seed or rng"), ({"seed": 1, "n_landmarks": 0}, "n_landmarks"),
+    ({"seed": 1, "n_visible": 500}, "n_visible"), ({"seed": 1, "p_detect": 1.5}, "p_detect"),
+    ({"seed": 1, "pose_sigma": (1, 1)}, "pose_sigma"), ({"seed": 1, "meas_sigma": 0}, "meas_sigma"),
+    ({"seed": 1, "pose_correlation": np.ones((3, 3))}, "pose_correlation"),
+    ({"seed": 1, "n_visible": None}, "n_visible or max_range"), ({"rng": 3}, "rng"),
+])
+def test_scenario_bad_inputs(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        range_bearing_scenario(**kwargs)
+
+
+def test_observe_points_bad_inputs():
+    with pytest.raises(ValueError, match="pose"):
+        observe_points(np.zeros(2), np.zeros((1, 2)))
+    with pytest.raises(ValueError, match="landmarks"):
+        observe_points(np.zeros(3), np.zeros((2, 3)))
+
+
+# ---------------------------------------------------------------------------------------------------------
+# evaluation
+# ---------------------------------------------------------------------------------------------------------
+def test_score_by_hand():
+    truth = np.array([0, 1, -1, 2])          # landmark 3's observation is column 2; column 3 is clutter
+    idx = np.array([0, 3, 1, 2])             # right, wrong (clutter), wrong (unobserved), right
+    s = score(idx, truth, m=4)
+    assert (s["tp"], s["n_pred"], s["n_true"]) == (2, 4, 3)
+    assert s["precision"] == 0.5 and s["recall"] == pytest.approx(2 / 3)
+    # observation labels: col0 → 0 ✓, col1 → 2 (truth 1) ✗, col2 → 3 ✓, col3 → 1 (truth none) ✗
+    assert s["correct"] == 2 and s["accuracy"] == 0.5
+    assert score(np.full(3, -1), np.full(3, -1), m=2)["accuracy"] == 1.0
+
+
+def test_score_many_equals_per_trial_scores():
+    rng = np.random.default_rng(2)
+    idx_l, truth_l, m_l = [], [], []
+    for _ in range(20):
+        n, m = rng.integers(1, 6), rng.integers(0, 6)
+        truth = np.full(n, -1)
+        truth[: min(n, m)] = rng.permutation(m)[: min(n, m)]
+        idx = np.full(n, -1)
+        idx[: min(n, m)] = rng.permutation(m)[: min(n, m)]
+        idx_l.append(rng.permutation(idx))
+        truth_l.append(truth)
+        m_l.append(m)
+    c = score_many(idx_l, truth_l, m_l)
+    for t in range(20):
+        s = score(idx_l[t], truth_l[t], m_l[t])
+        assert [c[key][t] for key in ("tp", "n_pred", "n_true", "correct")] == \
+            [s[key] for key in ("tp", "n_pred", "n_true", "correct")]
+    with pytest.raises(ValueError, match="same length"):
+        score_many([np.zeros(1)], [], [1])
+    with pytest.raises(ValueError, match="observation column"):
+        score_many([np.array([3])], [np.array([0])], [2])
+    with pytest.raises(ValueError, match="m must be"):
+        score(np.zeros(1), np.zeros(1), m=-1)
+
+
+def test_run_trials_is_deterministic_and_jcbb_wins():
+    algs = {"ICNN": mahalanobis_nn, "JCBB": jcbb}
+    kw = dict(n_landmarks=60, n_visible=12, n_clutter=4)
+    a = run_trials(algs, 12, seed=1, **kw)
+    b = run_trials(algs, 12, seed=1, **kw)
+    assert a.summary() == b.summary()
+    assert a.summary()["JCBB"]["accuracy"] > a.summary()["ICNN"]["accuracy"]
+    assert a.counts["JCBB"]["nodes"].min() >= 1 and a.counts["ICNN"]["nodes"].max() == 0
+    with pytest.raises(ValueError, match="algorithms"):
+        run_trials({}, 1, 0)
+    with pytest.raises(ValueError, match="n_trials"):
+        run_trials(algs, 0, 0)
+    with pytest.raises(ValueError, match="seed"):
+        run_trials(algs, 1, -1)
