@@ -177,28 +177,51 @@ def ground_truth_check(result: AssociationResult, camera, true_pose, true_landma
     return rows
 
 
-def plot_association(image, result: AssociationResult, ax=None, n_sigma: float = 3.0, title: str | None = None):
+def plot_association(image, result: AssociationResult, ax=None, n_sigma: float = 3.0, title: str | None = None,
+                     image_scale: float = 0.5, window=None):
     """Figure 1 of the lab (spec §9.7) with matplotlib over the image.
 
     All features: dark-red dots. Each selected landmark: '+' at the predicted mean and its 3σ ellipse
     (100 points; segments drawn only where both ends are inside the image), blue if associated and
     bright red if not, labelled with j at (μx + 20, μy − 20). Matched features: green '×'.
+    The image is shown resized by ``image_scale`` (the lab showed it at 0.5; coordinates stay full-size
+    pixels). ``window = (x0, x1, y0, y1)`` shows only that part of the image (a zoom; drawn at full size).
     Returns (fig, ax).
     """
+    import cv2
     import matplotlib.pyplot as plt
 
     image = np.asarray(image)
+    if image.dtype != np.uint8 or image.ndim not in (2, 3):
+        raise ValueError(f"image must be a uint8 gray or BGR image, got dtype {image.dtype}, shape {image.shape}")
+    if not (np.isfinite(image_scale) and 0 < image_scale <= 1):
+        raise ValueError(f"image_scale must lie in (0, 1], got {image_scale!r}")
     H, W = image.shape[:2]
+    if window is None:
+        x0, x1, y0, y1 = -0.5, W - 0.5, -0.5, H - 0.5
+        shown = image if image_scale == 1 else cv2.resize(image, None, fx=image_scale, fy=image_scale,
+                                                          interpolation=cv2.INTER_AREA)
+    else:
+        x0, x1, y0, y1 = (float(v) for v in window)
+        if not (x0 < x1 and y0 < y1):
+            raise ValueError(f"window must be (x0, x1, y0, y1) with x0 < x1 and y0 < y1, got {window!r}")
+        c0, c1 = max(int(np.floor(x0 + 0.5)), 0), min(int(np.ceil(x1 + 0.5)), W)
+        r0, r1 = max(int(np.floor(y0 + 0.5)), 0), min(int(np.ceil(y1 + 0.5)), H)
+        if c0 >= c1 or r0 >= r1:
+            raise ValueError(f"window {window!r} does not overlap the image")
+        shown = image[r0:r1, c0:c1]
+    extent = (-0.5, W - 0.5, H - 0.5, -0.5) if window is None else (c0 - 0.5, c1 - 0.5, r1 - 0.5, r0 - 0.5)
     if ax is None:
         fig, ax = plt.subplots(figsize=(9.6, 7.2))
     else:
         fig = ax.figure
     if image.ndim == 2:
-        ax.imshow(image, cmap="gray", vmin=0, vmax=255, interpolation="antialiased")
+        ax.imshow(shown, cmap="gray", vmin=0, vmax=255, extent=extent, interpolation="antialiased")
     else:
-        ax.imshow(image[..., ::-1])                                   # BGR → RGB
+        ax.imshow(shown[..., ::-1], extent=extent)                   # BGR → RGB
     Y = result.features.Y
-    ax.plot(Y[0], Y[1], ".", color=FIGURE1_COLORS["feature"], markersize=2.0, linestyle="none")
+    vis = (Y[0] >= x0) & (Y[0] <= x1) & (Y[1] >= y0) & (Y[1] <= y1)
+    ax.plot(Y[0, vis], Y[1, vis], ".", color=FIGURE1_COLORS["feature"], markersize=2.0, linestyle="none")
     for k, (j, i) in enumerate(zip(result.idx_landmarks, result.idx)):
         colour = FIGURE1_COLORS["associated" if i >= 0 else "unassociated"]
         dens = result.landmark_density(k)
@@ -211,11 +234,11 @@ def plot_association(image, result: AssociationResult, ax=None, n_sigma: float =
         ax.plot(Ex, Ey, "-", color=colour, linewidth=1.5)
         mu = dens.mean
         ax.plot(mu[0], mu[1], "+", color=colour, markersize=12, markeredgewidth=1.5)
-        ax.text(mu[0] + 20, mu[1] - 20, str(j), color=colour, fontsize=11, fontweight="bold")
+        ax.text(mu[0] + 20, mu[1] - 20, str(j), color=colour, fontsize=11, fontweight="bold", clip_on=True)
         if i >= 0:
             ax.plot(Y[0, i], Y[1, i], "x", color=FIGURE1_COLORS["match"], markersize=12, markeredgewidth=1.5)
-    ax.set_xlim(-0.5, W - 0.5)
-    ax.set_ylim(H - 0.5, -0.5)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y1, y0)
     ax.set_aspect("equal")
     ax.grid(False)
     ax.set_xticks([])
