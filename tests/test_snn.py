@@ -278,3 +278,45 @@ def test_figure1_plot_runs_and_uses_lab_colours():
     assert FIGURE1_COLORS["match"] in colours
     assert [t.get_text() for t in ax.texts] == [str(j) for j in range(9)]
     plt.close(fig)
+
+
+def test_ground_truth_check_verdicts():
+    from helpers.association.lab_demo import association_demo, ground_truth_check
+
+    camera, state, feats = demo_inputs()
+    res = association_demo(None, camera, state, features=feats, verbose=False)
+    rows = ground_truth_check(res, camera, state.camera_pose(camera), state.landmark_positions(), tol=2.0)
+    verdicts = [r["verdict"] for r in rows]
+    # landmarks 0, 1 have no feature near them (correct nulls); 2..8 have a feature 1 px away (correct)
+    assert verdicts == ["correct null"] * 2 + ["correct"] * 7
+    # pretend the truth is elsewhere for landmark 2: its association becomes wrong
+    moved = state.landmark_positions().copy()
+    moved[:, 2] += [0.0, 0.05, 0.0]
+    assert ground_truth_check(res, camera, state.camera_pose(camera), moved)[2]["verdict"] == "wrong"
+    with pytest.raises(ValueError, match="true_landmarks"):
+        ground_truth_check(res, camera, state.camera_pose(camera), moved[:2])
+    with pytest.raises(ValueError, match="tol"):
+        ground_truth_check(res, camera, state.camera_pose(camera), moved, tol=0.0)
+
+
+def test_figure1_zoom_window_and_bad_inputs():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from helpers.association.lab_demo import association_demo, plot_association
+
+    camera, state, feats = demo_inputs()
+    res = association_demo(None, camera, state, features=feats, verbose=False)
+    img = np.zeros((1440, 1920), np.uint8)
+    fig, ax = plot_association(img, res, window=(900, 1100, 600, 800))
+    assert ax.get_xlim() == (900.0, 1100.0) and ax.get_ylim() == (800.0, 600.0)
+    plt.close(fig)
+    with pytest.raises(ValueError, match="window"):
+        plot_association(img, res, window=(10, 5, 0, 10))
+    with pytest.raises(ValueError, match="window"):
+        plot_association(img, res, window=(3000, 3100, 0, 10))
+    with pytest.raises(ValueError, match="image"):
+        plot_association(img.astype(float), res)
+    with pytest.raises(ValueError, match="image_scale"):
+        plot_association(img, res, image_scale=0.0)
+    plt.close("all")
