@@ -180,7 +180,8 @@ def _checker(X, Y, cx, cy, half):
 
 def _sheet_bounds():
     a = SQUARE_SIZE
-    return (-a - SHEET_MARGIN, PATTERN_SIZE[0] * a + SHEET_MARGIN, -a - SHEET_MARGIN, PATTERN_SIZE[1] * a + SHEET_MARGIN)
+    return (-a - SHEET_MARGIN, PATTERN_SIZE[0] * a + SHEET_MARGIN,
+            -a - SHEET_MARGIN, PATTERN_SIZE[1] * a + SHEET_MARGIN)
 
 
 def _sharp_albedo(X, Y, Xc, Yc, background, plane_markers, occluders, occluder_half, card_markers):
