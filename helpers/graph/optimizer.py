@@ -35,7 +35,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .edge import BaseEdge, check_information_batch
 from .errors import GaugeFreedomError, GraphError
-from .linear import HessianPattern, LDLSolver, sparse_inverse_on_pattern
+from .linear import HessianPattern, LDLSolver, batched_jte, batched_jtj, batched_wj, sparse_inverse_on_pattern
 from .vertex import BaseVertex
 
 __all__ = ["SparseOptimizer"]
@@ -99,7 +99,7 @@ class _EdgeStore:
 class _ClassBlock:
     """Per edge class, the structure arrays of one build."""
 
-    __slots__ = ("store", "rows", "sidx", "shid", "z", "w", "params", "diag_w", "n")
+    __slots__ = ("store", "rows", "sidx", "shid", "z", "w", "wt", "params", "diag_w", "n")
 
 
 class SparseOptimizer:
@@ -455,6 +455,7 @@ class SparseOptimizer:
             ar = np.arange(store.m)
             offdiag[:, ar, ar] = 0.0
             blk.diag_w = not np.any(offdiag)
+            blk.wt = np.ascontiguousarray(w.transpose(0, 2, 1))
             if blk.diag_w:
                 blk.w = w[:, ar, ar].copy()
             blk.params = {k: g.v[rows].copy() for k, g in store.params.items()}
@@ -503,7 +504,8 @@ class SparseOptimizer:
         else:
             rows_c = cols_c = brow_c = np.zeros(0, dtype=np.int64)
             valid_c = np.zeros(0, dtype=bool)
-        pattern = HessianPattern(n, rows_c, cols_c, valid_c)
+        block_of = np.repeat(np.arange(len(free_h)), dims[free_h])  # vertex of every free index
+        pattern = HessianPattern(n, rows_c, cols_c, valid_c, block_of)
         self._hidx = hidx
         self._struct = {"n": n, "groups": groups, "free_off": free_off, "blocks": blocks,
                         "pattern": pattern, "brow": brow_c}
@@ -556,8 +558,8 @@ class SparseOptimizer:
                 ew = blk.w * e
                 jw = None if jac is None else [blk.w[:, :, None] * j for j in jac]
             else:
-                ew = np.einsum("eij,ej->ei", blk.w, e)
-                jw = None if jac is None else [(blk.w[:, :, :, None] * j[:, None, :, :]).sum(axis=2) for j in jac]
+                ew = batched_jte(blk.wt, np.ascontiguousarray(e))
+                jw = None if jac is None else [batched_wj(blk.w, np.ascontiguousarray(j)) for j in jac]
             out.append((blk, ew, jw))
         return out
 
@@ -575,17 +577,12 @@ class SparseOptimizer:
         for blk, ew, jw in self._eval_blocks(True):
             chi2 += float(np.einsum("ei,ei->", ew, ew))
             nv = blk.store.nv
+            jw = [np.ascontiguousarray(j) for j in jw]
             for k in range(nv):
                 jk = jw[k]
                 for l in range(k, nv):
-                    jl = jw[l]
-                    hkl = np.einsum("eik,eil->ekl", jk, jl)
-                    if k == l:
-                        a, b = np.triu_indices(jk.shape[2])
-                        hvals.append(hkl[:, a, b].ravel())
-                    else:
-                        hvals.append(hkl.ravel())
-                bvals.append(np.einsum("eik,ei->ek", jk, ew).ravel())
+                    hvals.append(batched_jtj(jk, jw[l], k == l).ravel())
+                bvals.append(batched_jte(jk, ew).ravel())
         if n == 0:
             self._hb = (np.zeros(0), np.zeros(0), chi2)
             return self._hb
@@ -794,7 +791,9 @@ class SparseOptimizer:
             return out
         if not np.all(np.isfinite(data)):
             raise GraphError("compute_marginals: the Hessian is not finite")
-        self._solver.factor(self._struct["pattern"], data)
+        if not self._solver.factor(self._struct["pattern"], data).ok:
+            raise GraphError("compute_marginals: H is not positive definite at this state (unobservable "
+                             "directions?), so no covariance exists")
         dims = np.array([type(v).dimension for v in free])
         starts = self._hidx[np.array([v._h for v in free])]
         groups, rows, cols = [], [], []

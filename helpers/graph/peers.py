@@ -1,0 +1,157 @@
+"""Peer runs for the benchmark and notebook 09: helpers.graph, GTSAM and g2o (g2opy) on the same dataset.
+
+Each ``run_*`` returns a dict: solver, time (wall time of the optimisation call only; loading is not timed),
+iters, chi2 (GTSAM: 2 × error), hist (χ² per iteration, starting with the initial value), marg_time (all pose
+covariances), cov {pose id: 3×3 world-frame (x, y, ψ) covariance}, est {pose id: [x, y, ψ]}.
+
+GTSAM's Pose2 covariance lives in the body-frame tangent space; it is rotated to the world-frame additive
+parameterisation of VertexSE2 (Σ_w = M Σ_b Mᵀ, M = blockdiag(R(ψ), 1)) before any comparison.
+g2opy 2.3.0: no range-bearing edge (pose graphs only); ``compute_marginals`` cannot return its result to Python
+("Unable to convert function return value"), so its marginal time is NaN. g2o's EdgeSE2 error is [t_d, θ_d]
+rather than GTSAM's Log(d), so its χ² is a slightly different cost (≈ 289.726 vs 289.735 on W10000).
+"""
+
+import time
+
+import numpy as np
+
+import gtsam
+from g2opy import g2opy as g2o
+
+from .. import datasets
+from .edges2d import EdgeSE2
+from .optimizer import SparseOptimizer
+from .vertex import VertexSE2
+
+
+def warm_up():
+    """Compile (or load from numba's cache) the kernels on a tiny graph, so timings exclude it."""
+    g = SparseOptimizer()
+    a, b = VertexSE2(0, fixed=True), VertexSE2(1, [1, 0, 0])
+    g.add_vertex(a)
+    g.add_vertex(b)
+    g.add_edge(EdgeSE2([a, b], measurement=[1, 0, 0]))
+    g.initialize_optimization()
+    g.optimize(2)
+    g.compute_marginals()
+
+
+def run_helpers(name, algorithm="gn", iters=100):
+    """Load and solve a dataset with helpers.graph; time the optimise call and all pose marginals."""
+    opt = datasets.load_dataset(name)
+    chi2_0 = opt.chi2()
+    t = time.perf_counter()
+    chi2 = opt.optimize(iters, algorithm=algorithm)
+    t_opt = time.perf_counter() - t
+    poses = [v for v in opt.vertices() if isinstance(v, VertexSE2)]
+    t = time.perf_counter()
+    marg = opt.compute_marginals(poses)
+    t_marg = time.perf_counter() - t
+    cov = {v.id: marg[v] for v in poses}
+    est = {v.id: v.estimate for v in poses}
+    return {"solver": "helpers", "time": t_opt, "iters": opt.iterations, "chi2": chi2, "marg_time": t_marg,
+            "cov": cov, "est": est, "hist": [chi2_0] + opt.chi2_history}
+
+
+def run_gtsam(name):
+    """GTSAM LevenbergMarquardtOptimizer (default parameters, 1e−6 prior on pose 0) and Marginals for all poses."""
+    graph, initial = gtsam.load2D(datasets.dataset_path(name))
+    graph.add(gtsam.PriorFactorPose2(0, initial.atPose2(0), gtsam.noiseModel.Isotropic.Sigma(3, 1e-6)))
+    params = gtsam.LevenbergMarquardtParams()
+    t = time.perf_counter()
+    optimizer = gtsam.LevenbergMarquardtOptimizer(graph, initial, params)
+    hist = [2 * graph.error(initial)]
+    t_hist = 0.0
+    while True:  # iterate() one step at a time to record χ² per iteration (the recording itself is not timed)
+        before = optimizer.error()
+        optimizer.iterate()
+        t0 = time.perf_counter()
+        hist.append(2 * optimizer.error())
+        t_hist += time.perf_counter() - t0
+        if optimizer.iterations() >= params.getMaxIterations() or gtsam.checkConvergence(
+                params.getRelativeErrorTol(), params.getAbsoluteErrorTol(), params.getErrorTol(), before,
+                optimizer.error()):
+            break
+    result = optimizer.values()
+    t_opt = time.perf_counter() - t - t_hist
+    pose_keys = [k for k in result.keys() if gtsam.Symbol(k).chr() == 0]
+    t = time.perf_counter()
+    marginals = gtsam.Marginals(graph, result)
+    cov = {int(k): marginals.marginalCovariance(k) for k in pose_keys}
+    t_marg = time.perf_counter() - t
+    est = {}
+    for k in pose_keys:
+        p = result.atPose2(k)
+        est[int(k)] = np.array([p.x(), p.y(), p.theta()])
+    # body-frame tangent (GTSAM Pose2) → world-frame additive (x, y, ψ): Σ_w = M Σ_b Mᵀ, M = blockdiag(R(ψ), 1)
+    for k, c in cov.items():
+        psi = est[k][2]
+        m = np.eye(3)
+        m[:2, :2] = [[np.cos(psi), -np.sin(psi)], [np.sin(psi), np.cos(psi)]]
+        cov[k] = m @ c @ m.T
+    return {"solver": "GTSAM", "time": t_opt, "iters": optimizer.iterations(), "chi2": 2 * graph.error(result),
+            "marg_time": t_marg, "cov": cov, "est": est, "hist": hist}
+
+
+def run_g2o(name, iters=15):
+    """g2opy Gauss–Newton (BlockSolverSE2 + Eigen), first pose fixed; pose-graph datasets only."""
+    data = datasets.read_dataset(name)
+    if any(e[0] != "se2" for e in data.edges):
+        raise ValueError(f"g2opy has no range-bearing edge; {name} is not a pose graph")
+    poses, _ = datasets._initial_values(data)
+    opt = g2o.SparseOptimizer()
+    opt.set_algorithm(g2o.OptimizationAlgorithmGaussNewton(g2o.BlockSolverSE2(g2o.LinearSolverEigenSE2())))
+    first = min(poses)
+    vs = {}
+    for pid in sorted(poses):
+        v = g2o.VertexSE2()
+        v.set_id(int(pid))
+        v.set_estimate(g2o.SE2(*poses[pid]))
+        v.set_fixed(pid == first)
+        opt.add_vertex(v)
+        vs[pid] = v
+    for kind, i, j, z, info in data.edges:
+        e = g2o.EdgeSE2()
+        e.set_vertex(0, vs[i])
+        e.set_vertex(1, vs[j])
+        e.set_measurement(g2o.SE2(*z))
+        e.set_information(info)
+        opt.add_edge(e)
+    opt.initialize_optimization()
+    opt.set_compute_batch_statistics(True)
+    t = time.perf_counter()
+    opt.optimize(iters)
+    t_opt = time.perf_counter() - t
+    opt.compute_active_errors()
+    chi2 = opt.chi2()
+    hist = [float(s.chi2) for s in opt.batch_statistics()]
+    free = [vs[p] for p in sorted(poses) if p != first]
+    t = time.perf_counter()
+    cov = {}
+    try:
+        spinv, ok = opt.compute_marginals(free)
+        for p in sorted(poses):
+            if p != first:
+                hi = vs[p].hessian_index()
+                cov[p] = np.array(spinv.block(hi, hi))
+        t_marg = time.perf_counter() - t
+    except TypeError:  # g2opy 2.3.0: "Unable to convert function return value" (SparseBlockMatrix* not bound)
+        t_marg = float("nan")
+    est = {p: np.array(vs[p].estimate().vector()) for p in poses}
+    return {"solver": "g2o", "time": t_opt, "iters": iters, "chi2": chi2, "marg_time": t_marg, "cov": cov,
+            "est": est, "hist": hist}
+
+
+def agreement(a, b):
+    """max over shared poses of ‖Σ_a − Σ_b‖_F / ‖Σ_b‖_F (poses with a zero/fixed block skipped)."""
+    if not a:
+        return float("nan")
+    worst = 0.0
+    for k, cb in b.items():
+        ca = a.get(k)
+        if ca is None or not np.any(ca) or np.linalg.norm(cb) < 1e-9:
+            continue
+        worst = max(worst, float(np.linalg.norm(ca - cb) / np.linalg.norm(cb)))
+    return worst
+
+
