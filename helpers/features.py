@@ -15,8 +15,8 @@ A feature is a pixel whose response exceeds ``threshold × max(R)`` (a relative 
 cv2.goodFeaturesToTrack). Optionally the response map is smoothed by a Gaussian (``smoothing``) and only local
 maxima within a (2·nms_radius + 1)² window are kept (non-maximum suppression; the lab's detector had none,
 so ``nms_radius=0`` is the default). Features are returned sorted by **descending score**, ties broken by
-raster order (row, then column), and capped at ``max_features`` (the lab's ``maxNumFeatures = 10000``). Coordinates are integer pixels, OpenCV
-convention: x to the right, y down, origin at the top-left pixel.
+raster order (row, then column), and capped at ``max_features`` (the lab's ``maxNumFeatures = 10000``).
+Coordinates are integer pixels, OpenCV convention: x to the right, y down, origin at the top-left pixel.
 """
 from __future__ import annotations
 
