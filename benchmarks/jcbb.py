@@ -11,7 +11,7 @@ with D²_H recomputed from scratch (Cholesky of C_H and a solve) at every node. 
 the same objective, so they must return the same hypothesis; the benchmark checks it on every trial on
 which the naive search finishes within its time cap.
 
-    .venv/bin/python benchmarks/jcbb.py [--trials 30] [--naive-cap 20]
+    .venv/bin/python benchmarks/jcbb.py [--trials 50] [--naive-cap 15] [--budget 10000]
 
 BLAS is pinned to one thread (the machine is shared; multi-threaded BLAS on 300×300 matrices only adds
 contention). Timings are wall-clock, best of 3 runs for the fast JCBB, one run for the naive one.
@@ -93,9 +93,9 @@ def naive_jcbb(density, Y, n_sigma=3.0, time_cap=None):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--trials", type=int, default=30)
-    ap.add_argument("--naive-cap", type=float, default=20.0, help="time cap per naive run [s]")
-    ap.add_argument("--budget", type=int, default=5000, help="node budget for the capped fast run")
+    ap.add_argument("--trials", type=int, default=50)
+    ap.add_argument("--naive-cap", type=float, default=15.0, help="time cap per naive run [s]")
+    ap.add_argument("--budget", type=int, default=10000, help="node budget for the capped fast run")
     args = ap.parse_args()
     print(f"JCBB benchmark  {datetime.date.today().isoformat()}  trials={args.trials}  "
           "150 landmarks / 30 m square, m = 30 + 2 clutter, pose σ (0.5 m, 0.5 m, 8°)")

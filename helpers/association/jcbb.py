@@ -136,6 +136,12 @@ def _jcbb_kernel(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, ma
     used = np.zeros(m, dtype=np.bool_)
     mark = np.zeros(m, dtype=np.bool_)
     mins = np.zeros(Tm)
+    # d²-cache: for the current H at depth k, dcache[k, e] = D²_H + d²(o_e | q_e, H) for every candidate
+    # edge e of a later level (inf when o_e is used). H is fixed while the search stays at depth k (star
+    # branches do not change it), so the values are computed once per pairing, not once per node.
+    E = cand_obs.size
+    dcache = np.full((K + 1, max(E, 1)), np.inf)
+    dvalid = np.zeros(K + 1, dtype=np.bool_)
     idx = np.full(n, -1, dtype=np.int64)
     best_idx = idx.copy()
     best_k = 0
@@ -145,7 +151,6 @@ def _jcbb_kernel(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, ma
         maxc = max(maxc, cand_ptr[t + 1] - cand_ptr[t])
     lv_obs = np.zeros((Tm, maxc), dtype=np.int64)
     lv_d2 = np.zeros((Tm, maxc))
-    lv_wn = np.zeros((Tm, maxc, d))
     lv_nc = np.zeros(Tm, dtype=np.int64)
     lv_ptr = np.zeros(Tm, dtype=np.int64)
     lv_star = np.zeros(Tm, dtype=np.bool_)
@@ -174,6 +179,16 @@ def _jcbb_kernel(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, ma
             entering = False
             # ---- bound: how many more pairings could any descendant still make? -------------------------
             possible = 0
+            if t < T and not dvalid[k]:
+                for q in range(t, T):
+                    for e in range(cand_ptr[q], cand_ptr[q + 1]):
+                        o = cand_obs[e]
+                        if used[o] or not cOK[k, q]:
+                            dcache[k, e] = np.inf
+                        else:
+                            dcache[k, e] = D2 + _whitened_sq(cL[k, q], Y, cM[k, q], o, tmp)
+                            jc_evals += 1
+                dvalid[k] = True
             if t < T:
                 reach = 0
                 for o in range(m):
@@ -200,7 +215,7 @@ def _jcbb_kernel(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, ma
                             o = cand_obs[e]
                             if used[o]:
                                 continue
-                            dq = D2 + _whitened_sq(cL[k, q], Y, cM[k, q], o, tmp)
+                            dq = dcache[k, e]
                             if dq <= lim:
                                 if not mark[o]:
                                     mark[o] = True
@@ -253,20 +268,15 @@ def _jcbb_kernel(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, ma
                     o = cand_obs[e]
                     if used[o]:
                         continue
-                    jc_evals += 1
-                    d2new = D2 + _whitened_sq(cL[k, t], Y, cM[k, t], o, wn)
+                    d2new = dcache[k, e]
                     if d2new <= thresh[k + 1]:
                         pos = nc                          # insertion: ascending D², ties keep obs order
                         while pos > 0 and lv_d2[t, pos - 1] > d2new:
                             lv_obs[t, pos] = lv_obs[t, pos - 1]
                             lv_d2[t, pos] = lv_d2[t, pos - 1]
-                            for a in range(d):
-                                lv_wn[t, pos, a] = lv_wn[t, pos - 1, a]
                             pos -= 1
                         lv_obs[t, pos] = o
                         lv_d2[t, pos] = d2new
-                        for a in range(d):
-                            lv_wn[t, pos, a] = wn[a]
                         nc += 1
                     elif trace_cap > 0:
                         if ntr < trace_cap:
@@ -299,6 +309,8 @@ def _jcbb_kernel(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, ma
             # new block row of G for every later level q: Gn = L₂⁻¹ (P[rows(t), rows(q)] − W_tᵀ G_q),
             # then the conditional mean and covariance of q given H + (t, o).
             Lt = cL[k, t]
+            _whitened_sq(Lt, Y, cM[k, t], o, wn)          # w_n = L₂⁻¹ (y_o − μ_{t|H})
+            dvalid[k + 1] = False
             for q in range(t + 1, T):
                 lq = levels[q]
                 for b in range(d):
@@ -314,7 +326,7 @@ def _jcbb_kernel(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, ma
                         G[p + a, d * q + b] = Gn[a, b]
                     sm = cM[k, q, a]
                     for u in range(d):
-                        sm += Gn[u, a] * lv_wn[t, c, u]
+                        sm += Gn[u, a] * wn[u]
                     cM[k + 1, q, a] = sm
                     for b in range(d):
                         s = 0.0
