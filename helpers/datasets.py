@@ -277,13 +277,18 @@ def _initial_values(data):
     return poses, points
 
 
-def build_optimizer(data, fix_first=True):
-    """A SparseOptimizer holding the dataset (pose vertices VertexSE2, points VertexPointXY)."""
+def build_optimizer(data, fix_first=True, pose_class=VertexSE2):
+    """A SparseOptimizer holding the dataset (pose vertices ``pose_class``, points VertexPointXY).
+
+    ``pose_class=VertexSE2Exp`` gives GTSAM's Pose2 update (exponential map) instead of the coursework's additive one.
+    """
+    if not (isinstance(pose_class, type) and issubclass(pose_class, VertexSE2)):
+        raise ValueError(f"pose_class must be VertexSE2 or a subclass, got {pose_class!r}")
     poses, points = _initial_values(data)
     opt = SparseOptimizer()
     pv, lv = {}, {}
     for pid in sorted(poses):
-        v = VertexSE2(pid, poses[pid])
+        v = pose_class(pid, poses[pid])
         opt.add_vertex(v)
         pv[pid] = v
     for lid in sorted(points):
@@ -326,9 +331,9 @@ def read_dataset(name):
     return read_toro(path)
 
 
-def load_dataset(name):
+def load_dataset(name, pose_class=VertexSE2):
     """SparseOptimizer for "w100", "w10000", "victoria_park" or "example", first pose fixed, structure built."""
-    opt = build_optimizer(read_dataset(name))
+    opt = build_optimizer(read_dataset(name), pose_class=pose_class)
     opt.initialize_optimization()
     return opt
 

@@ -4,17 +4,18 @@ import numpy as np
 import pytest
 
 from helpers.graph import (BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2, EdgeSE2Prior,
-                           GaugeFreedomError, GraphError, SparseOptimizer, VertexPointXY, VertexSE2, wrap_angle)
+                           GaugeFreedomError, GraphError, SparseOptimizer, VertexPointXY, VertexSE2, VertexSE2Exp,
+                           wrap_angle)
 
 
-def small_slam(seed=0, n_poses=6, n_points=4, fix_first=True):
+def small_slam(seed=0, n_poses=6, n_points=4, fix_first=True, pose_class=VertexSE2):
     """Noisy poses on a circle, points around it, odometry + range-bearing + one GPS + one compass edge."""
     rng = np.random.default_rng(seed)
     ang = np.linspace(0, 1.5 * np.pi, n_poses)
     truth = np.c_[5 * np.cos(ang), 5 * np.sin(ang), wrap_angle(ang + np.pi / 2)]
     pts = rng.uniform(-7, 7, (n_points, 2))
     g = SparseOptimizer()
-    poses = [VertexSE2(i, truth[i] + rng.normal(0, [0.3, 0.3, 0.1]), fixed=(fix_first and i == 0))
+    poses = [pose_class(i, truth[i] + rng.normal(0, [0.3, 0.3, 0.1]), fixed=(fix_first and i == 0))
              for i in range(n_poses)]
     lms = [VertexPointXY(j, pts[j] + rng.normal(0, 0.5, 2)) for j in range(n_points)]
     for v in poses + lms:
@@ -319,3 +320,32 @@ def test_add_edges_bulk_equals_one_by_one():
     with pytest.raises(ValueError, match="positive definite"):
         g2.add_edges(EdgeRangeBearing, [[g2.vertex(0, VertexSE2), g2.vertex(0, VertexPointXY)]], [[1.0, 0.0]],
                      -np.eye(2))
+
+
+@pytest.mark.parametrize("algorithm, pose_class", [("lm", VertexSE2Exp), ("gn", VertexSE2Exp),
+                                                   ("lm-gtsam", VertexSE2), ("lm-gtsam", VertexSE2Exp)])
+def test_other_algorithms_and_exp_update_reach_the_same_optimum(algorithm, pose_class):
+    g_ref, poses_ref, _ = small_slam(seed=8)
+    g_ref.initialize_optimization()
+    chi_ref = g_ref.optimize(100, algorithm="gn")
+    g, poses, _ = small_slam(seed=8, pose_class=pose_class)
+    g.initialize_optimization()
+    assert g.optimize(100, algorithm=algorithm) == pytest.approx(chi_ref, rel=1e-6)
+    for a, b in zip(poses, poses_ref):
+        np.testing.assert_allclose(a.estimate, b.estimate, atol=1e-5)
+
+
+def test_exp_update_matches_gtsam_retract_and_its_jacobian():
+    gtsam = pytest.importorskip("gtsam", reason="gtsam's Pose2.retract is the oracle")
+    rng = np.random.default_rng(9)
+    x = np.c_[rng.normal(size=(20, 2)), rng.uniform(-3, 3, 20)]
+    d = np.c_[rng.normal(size=(20, 2)), rng.uniform(-2, 2, 20)]
+    d[0, 2] = 0.0
+    out = VertexSE2Exp.oplus_batch(x, d)
+    for t in range(20):
+        p = gtsam.Pose2(*x[t]).retract(d[t])
+        np.testing.assert_allclose(out[t], [p.x(), p.y(), p.theta()], atol=1e-9)
+    h = 1e-6
+    num = np.stack([(VertexSE2Exp.oplus_batch(x, np.eye(3)[a] * h + 0 * x) -
+                     VertexSE2Exp.oplus_batch(x, -np.eye(3)[a] * h + 0 * x)) / (2 * h) for a in range(3)], axis=2)
+    np.testing.assert_allclose(VertexSE2Exp.oplus_jacobian_batch(x), num, atol=1e-6)

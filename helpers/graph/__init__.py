@@ -82,8 +82,8 @@ from .edges2d import (EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeR
                       EdgeSE2Prior)
 from .errors import GaugeFreedomError, GraphError
 from .optimizer import SparseOptimizer
-from .vertex import BaseVertex, VertexPointXY, VertexSE2
+from .vertex import BaseVertex, VertexPointXY, VertexSE2, VertexSE2Exp
 
-__all__ = ["wrap_angle", "BaseVertex", "VertexSE2", "VertexPointXY", "BaseEdge", "check_information",
+__all__ = ["wrap_angle", "BaseVertex", "VertexSE2", "VertexSE2Exp", "VertexPointXY", "BaseEdge", "check_information",
            "EdgeSE2", "EdgeSE2Prior", "EdgePositionPrior", "EdgeHeadingPrior", "EdgeRangeBearing", "EdgePointPrior",
            "SparseOptimizer", "GraphError", "GaugeFreedomError"]

@@ -26,7 +26,7 @@ from numba import njit
 import qdldl
 
 __all__ = ["HessianPattern", "LDLSolver", "sparse_inverse_on_pattern", "batched_jtj", "batched_jte",
-           "batched_wj"]
+           "batched_wj", "batched_matmul"]
 
 
 @njit(cache=True)
@@ -61,6 +61,22 @@ def batched_jte(a, v):
             for r in range(m):
                 acc += a[e, r, i] * v[e, r]
             out[e, i] = acc
+    return out
+
+
+@njit(cache=True)
+def batched_matmul(a, b):
+    """(E, p, q), (E, q, r) → A B per edge."""
+    E, p, q = a.shape
+    r = b.shape[2]
+    out = np.empty((E, p, r))
+    for e in range(E):
+        for i in range(p):
+            for c in range(r):
+                acc = 0.0
+                for k in range(q):
+                    acc += a[e, i, k] * b[e, k, c]
+                out[e, i, c] = acc
     return out
 
 

@@ -35,7 +35,8 @@ from scipy.sparse.csgraph import connected_components
 
 from .edge import BaseEdge, check_information_batch
 from .errors import GaugeFreedomError, GraphError
-from .linear import HessianPattern, LDLSolver, batched_jte, batched_jtj, batched_wj, sparse_inverse_on_pattern
+from .linear import (HessianPattern, LDLSolver, batched_jte, batched_jtj, batched_matmul, batched_wj,
+                     sparse_inverse_on_pattern)
 from .vertex import BaseVertex
 
 __all__ = ["SparseOptimizer"]
@@ -99,7 +100,7 @@ class _EdgeStore:
 class _ClassBlock:
     """Per edge class, the structure arrays of one build."""
 
-    __slots__ = ("store", "rows", "sidx", "shid", "z", "w", "wt", "params", "diag_w", "n")
+    __slots__ = ("store", "rows", "sidx", "shid", "vh", "z", "w", "wt", "params", "diag_w", "n")
 
 
 class SparseOptimizer:
@@ -429,9 +430,10 @@ class SparseOptimizer:
             cls = self._classes[code]
             d = int(cls.dimension)
             ar = np.arange(d)
-            groups.append((cls, off[hs][:, None] + ar, hidx[hs][:, None] + ar))
+            groups.append((cls, off[hs][:, None] + ar, hidx[hs][:, None] + ar, hs))
+        manifold = any(cls.oplus_jacobian_batch is not None for cls, *_ in groups)
         free_off = np.zeros(n, dtype=np.int64)
-        for _, vi, hi in groups:
+        for _, vi, hi, _ in groups:
             free_off[hi.ravel()] = vi.ravel()
 
         blocks = []
@@ -448,6 +450,7 @@ class SparseOptimizer:
             vh = store.vh.v[rows]
             blk.sidx = [off[vh[:, k]][:, None] + np.arange(d) for k, d in enumerate(store.dims)]
             blk.shid = [hidx[vh[:, k]] for k in range(store.nv)]
+            blk.vh = vh
             blk.z = store.z.v[rows].copy()
             w = store.w.v[rows].copy()
             blk.w = w
@@ -507,7 +510,7 @@ class SparseOptimizer:
         block_of = np.repeat(np.arange(len(free_h)), dims[free_h])  # vertex of every free index
         pattern = HessianPattern(n, rows_c, cols_c, valid_c, block_of)
         self._hidx = hidx
-        self._struct = {"n": n, "groups": groups, "free_off": free_off, "blocks": blocks,
+        self._struct = {"n": n, "groups": groups, "manifold": manifold, "nh": nh, "free_off": free_off, "blocks": blocks,
                         "pattern": pattern, "brow": brow_c}
         self._hb = None
         self._dirty = False
@@ -551,9 +554,13 @@ class SparseOptimizer:
         """Per class: whitened errors and (optionally) Jacobians at the current estimates."""
         vx = self._vx.a
         out = []
+        mjac = self._oplus_jacobians() if (jacobians and self._struct["manifold"]) else None
         for blk in self._struct["blocks"]:
             states = [vx[s] for s in blk.sidx]
             e, jac = blk.store.cls.evaluate(states, blk.z, blk.params, jacobians=jacobians)
+            if mjac is not None:
+                jac = [batched_matmul(np.ascontiguousarray(j), mjac[j.shape[2]][blk.vh[:, k]]) if j.shape[2] in mjac
+                       else j for k, j in enumerate(jac)]
             if blk.diag_w:
                 ew = blk.w * e
                 jw = None if jac is None else [blk.w[:, :, None] * j for j in jac]
@@ -561,6 +568,19 @@ class SparseOptimizer:
                 ew = batched_jte(blk.wt, np.ascontiguousarray(e))
                 jw = None if jac is None else [batched_wj(blk.w, np.ascontiguousarray(j)) for j in jac]
             out.append((blk, ew, jw))
+        return out
+
+    def _oplus_jacobians(self):
+        """Per dimension d: (handles, d, d) array of ∂(x ⊞ δ)/∂δ (identity for additive vertex classes)."""
+        vx = self._vx.a
+        out = {}
+        for cls, vi, _, hs in self._struct["groups"]:
+            if cls.oplus_jacobian_batch is None:
+                continue
+            d = vi.shape[1]
+            if d not in out:
+                out[d] = np.broadcast_to(np.eye(d), (self._struct["nh"], d, d)).copy()
+            out[d][hs] = cls.oplus_jacobian_batch(vx[vi])
         return out
 
     def _chi2_current(self):
@@ -619,7 +639,7 @@ class SparseOptimizer:
 
     def _oplus_minus(self, dx):
         vx = self._vx.a
-        for cls, vi, hi in self._struct["groups"]:
+        for cls, vi, hi, _ in self._struct["groups"]:
             vx[vi] = cls.oplus_batch(vx[vi], -dx[hi])
         self._hb = None
 
@@ -636,14 +656,16 @@ class SparseOptimizer:
         if not isinstance(max_iterations, (int, np.integer)) or isinstance(max_iterations, bool) \
                 or max_iterations < 0:
             raise ValueError(f"max_iterations must be a non-negative int, got {max_iterations!r}")
-        if algorithm not in ("lm", "gn"):
-            raise ValueError(f"algorithm must be 'lm' or 'gn', got {algorithm!r}")
+        if algorithm not in ("lm", "gn", "lm-gtsam"):
+            raise ValueError(f"algorithm must be 'lm', 'gn' or 'lm-gtsam', got {algorithm!r}")
         self._require_structure("optimize")
         self.statistics = []
         if self._struct["n"] == 0:
             return self.chi2()
         if algorithm == "lm":
             return self._optimize_lm(int(max_iterations), float(tau))
+        if algorithm == "lm-gtsam":
+            return self._optimize_lm_gtsam(int(max_iterations))
         return self._optimize_gn(int(max_iterations), float(gn_tolerance))
 
     def _record(self, k, chi2, mu, rejected, t0):
@@ -707,6 +729,59 @@ class SparseOptimizer:
         self._set_x(x)  # the vertices hold the accepted state (spec §7.7)
         self._hb = (data, b, r0)
         return r0
+
+    def _optimize_lm_gtsam(self, kmax, lam0=1e-5, factor=10.0, lam_max=1e5, min_fidelity=1e-3, rel_tol=1e-5,
+                           abs_tol=1e-5):
+        """GTSAM's LevenbergMarquardtOptimizer with its default parameters: λ₀ = 1e−5 (absolute), λI damping,
+        accept when (actual / linearised decrease) > 1e−3 then λ /= 10, else λ *= 10 (stop above 1e5); stop when
+        the decrease is below 1e−5 relative or absolute (on GTSAM's ½χ² scale)."""
+        t0 = time.perf_counter()
+        pattern = self._struct["pattern"]
+        data, b, r0 = self._compute_hb()
+        x = self._get_x()
+        lam = lam0
+        for k in range(1, kmax + 1):
+            rejected = 0
+            accepted = False
+            while lam < lam_max:
+                damped = data.copy()
+                damped[pattern.diag_pos] += lam
+                dx = self._solver.factor(pattern, damped).solve(b)
+                if np.all(np.isfinite(dx)):
+                    hdx = self._h_times(data, dx)
+                    lin = 2.0 * float(b @ dx) - float(dx @ hdx)
+                    self._oplus_minus(dx)
+                    r1 = self._chi2_current()
+                    if lin >= 0 and np.isfinite(r1) and (r0 - r1) / max(lin, 1e-300) > min_fidelity:
+                        accepted = True
+                        break
+                    self._set_x(x)
+                rejected += 1
+                lam *= factor
+            if not accepted:
+                self._record(k, r0, lam, rejected, t0)
+                break
+            decrease = r0 - r1
+            x = self._get_x()
+            r0 = r1
+            lam /= factor
+            data, b, _ = self._compute_hb()
+            self._record(k, r0, lam, rejected, t0)
+            if decrease < rel_tol * r0 or 0.5 * decrease < abs_tol:
+                break
+        self._set_x(x)
+        self._hb = (data, b, r0)
+        return r0
+
+    def _h_times(self, data, v):
+        """H v with H stored as the upper triangle of P H Pᵀ."""
+        pat = self._struct["pattern"]
+        upper = sp.csc_matrix((data, pat.indices, pat.indptr), shape=(pat.n, pat.n))
+        vp = v[pat.perm]
+        hv = upper @ vp + upper.T @ vp - data[pat.diag_pos[pat.perm]] * vp
+        out = np.empty_like(v)
+        out[pat.perm] = hv
+        return out
 
     def _optimize_gn(self, kmax, tol):
         t0 = time.perf_counter()
@@ -772,7 +847,9 @@ class SparseOptimizer:
     def compute_marginals(self, vertices=None):
         """Covariance blocks (H⁻¹ at the current state, undamped) for the given vertices (default: all).
 
-        Returns {vertex: (d, d) array}. Fixed vertices get a zero block. Uses the sparse inverse on the pattern of
+        Returns {vertex: (d, d) array}: the covariance of the vertex's ⊞ update δ (for additive vertices, of its
+        coordinates; for VertexSE2Exp, body-frame — map with M = oplus_jacobian_batch: M Σ Mᵀ). Fixed vertices get a
+        zero block. Uses the sparse inverse on the pattern of
         the LDLᵀ factor (Takahashi recursion), never a dense inverse.
         """
         if vertices is None:

@@ -36,9 +36,9 @@ def warm_up():
     g.compute_marginals()
 
 
-def run_helpers(name, algorithm="gn", iters=100):
+def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2):
     """Load and solve a dataset with helpers.graph; time the optimise call and all pose marginals."""
-    opt = datasets.load_dataset(name)
+    opt = datasets.load_dataset(name, pose_class=pose_class)
     chi2_0 = opt.chi2()
     t = time.perf_counter()
     chi2 = opt.optimize(iters, algorithm=algorithm)
@@ -48,13 +48,19 @@ def run_helpers(name, algorithm="gn", iters=100):
     marg = opt.compute_marginals(poses)
     t_marg = time.perf_counter() - t
     cov = {v.id: marg[v] for v in poses}
+    if pose_class.oplus_jacobian_batch is not None:  # covariance of the update δ → of the coordinates (x, y, ψ)
+        ms = pose_class.oplus_jacobian_batch(np.array([v.estimate for v in poses]))
+        cov = {v.id: m @ marg[v] @ m.T for v, m in zip(poses, ms)}
     est = {v.id: v.estimate for v in poses}
-    return {"solver": "helpers", "time": t_opt, "iters": opt.iterations, "chi2": chi2, "marg_time": t_marg,
-            "cov": cov, "est": est, "hist": [chi2_0] + opt.chi2_history}
+    points = {v.id: v.estimate for v in opt.vertices() if not isinstance(v, VertexSE2)}
+    return {"solver": "helpers", "config": f"{algorithm}, {pose_class.__name__}", "time": t_opt, "iters": opt.iterations, "chi2": chi2, "marg_time": t_marg,
+            "cov": cov, "est": est, "points": points,
+            "hist": [chi2_0] + opt.chi2_history}
 
 
-def run_gtsam(name):
-    """GTSAM LevenbergMarquardtOptimizer (default parameters, 1e−6 prior on pose 0) and Marginals for all poses."""
+def run_gtsam(name, marginal_every=1):
+    """GTSAM LevenbergMarquardtOptimizer (default parameters, 1e−6 prior on pose 0) and Marginals for all poses
+    (or every ``marginal_every``-th pose, to keep a notebook short)."""
     graph, initial = gtsam.load2D(datasets.dataset_path(name))
     graph.add(gtsam.PriorFactorPose2(0, initial.atPose2(0), gtsam.noiseModel.Isotropic.Sigma(3, 1e-6)))
     params = gtsam.LevenbergMarquardtParams()
@@ -77,7 +83,7 @@ def run_gtsam(name):
     pose_keys = [k for k in result.keys() if gtsam.Symbol(k).chr() == 0]
     t = time.perf_counter()
     marginals = gtsam.Marginals(graph, result)
-    cov = {int(k): marginals.marginalCovariance(k) for k in pose_keys}
+    cov = {int(k): marginals.marginalCovariance(k) for k in pose_keys[::marginal_every]}
     t_marg = time.perf_counter() - t
     est = {}
     for k in pose_keys:
@@ -89,8 +95,30 @@ def run_gtsam(name):
         m = np.eye(3)
         m[:2, :2] = [[np.cos(psi), -np.sin(psi)], [np.sin(psi), np.cos(psi)]]
         cov[k] = m @ c @ m.T
-    return {"solver": "GTSAM", "time": t_opt, "iters": optimizer.iterations(), "chi2": 2 * graph.error(result),
+    return {"solver": "GTSAM", "config": "LM defaults", "time": t_opt, "iters": optimizer.iterations(), "chi2": 2 * graph.error(result),
             "marg_time": t_marg, "cov": cov, "est": est, "hist": hist}
+
+
+def gtsam_marginals_at(name, est, points, marginal_every=1):
+    """GTSAM's pose covariances (world-frame (x, y, ψ)) evaluated at a given solution — the oracle for checking
+    helpers' marginals at the same state."""
+    graph, _ = gtsam.load2D(datasets.dataset_path(name))
+    first = min(est)
+    graph.add(gtsam.PriorFactorPose2(first, gtsam.Pose2(*est[first]), gtsam.noiseModel.Isotropic.Sigma(3, 1e-9)))
+    values = gtsam.Values()
+    for k, x in est.items():
+        values.insert(int(k), gtsam.Pose2(*x))
+    for k, m in points.items():
+        values.insert(gtsam.symbol("l", int(k)), np.asarray(m, dtype=float))
+    marginals = gtsam.Marginals(graph, values)
+    out = {}
+    for k in sorted(est)[::marginal_every]:
+        c = marginals.marginalCovariance(int(k))
+        m = np.eye(3)
+        psi = est[k][2]
+        m[:2, :2] = [[np.cos(psi), -np.sin(psi)], [np.sin(psi), np.cos(psi)]]
+        out[k] = m @ c @ m.T
+    return out
 
 
 def run_g2o(name, iters=15):
@@ -138,7 +166,7 @@ def run_g2o(name, iters=15):
     except TypeError:  # g2opy 2.3.0: "Unable to convert function return value" (SparseBlockMatrix* not bound)
         t_marg = float("nan")
     est = {p: np.array(vs[p].estimate().vector()) for p in poses}
-    return {"solver": "g2o", "time": t_opt, "iters": iters, "chi2": chi2, "marg_time": t_marg, "cov": cov,
+    return {"solver": "g2o", "config": f"GN x{iters}", "time": t_opt, "iters": iters, "chi2": chi2, "marg_time": t_marg, "cov": cov,
             "est": est, "hist": hist}
 
 
