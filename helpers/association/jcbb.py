@@ -8,23 +8,37 @@ landmark index), the classic "most constrained first" rule; the order is reporte
 
 At a node H (a partial hypothesis with a pairings and joint distance D²_H) on level t, landmark k:
 
-1. **Bound.** possible = min(levels left, unused observations that are still a candidate of a level ≥ t).
-   The node is discarded when a + possible < pairings(Best), or a + possible = pairings(Best) and
-   D²_H ≥ D²_Best (D² can only grow along a branch, so no descendant can win). For the star branch this is
-   the lecture's rule "pairings(H) + remaining possible ≥ best"; applying it to every node is the same
-   bound used everywhere.
-2. **Incumbent.** H completed with stars is a hypothesis: if it has more pairings than Best, or as many
-   and a smaller D², it becomes Best (objective: most pairings, then smallest D²).
-3. **Children.** For every IC observation i of landmark k not already used in H, the joint distance of
-   H + (k, i) is computed *incrementally* (spec §2.9): with C_H = L Lᵀ and w = L⁻¹ f_H (D²_H = ‖w‖²),
-   B = Cov(f_H, ν_k) = P[rows(H), rows(k)] and D = P_kk,
+1. **Incremental joint distance (spec §2.9).** With C_H = L Lᵀ, w = L⁻¹ f_H (D²_H = ‖w‖²),
+   B = Cov(f_H, ν_k) = P[rows(H), rows(k)] and D = P_kk, appending the pairing (k, i) gives
 
        L W = B,   D − WᵀW = L₂ L₂ᵀ,   w_n = L₂⁻¹ (ν_ki − Wᵀ w),   D²_{H+(k,i)} = D²_H + ‖w_n‖²,
 
-   and the new factor is [[L, 0], [Wᵀ, L₂]]. W and L₂ do not depend on i, so one O(a²d) triangular solve
-   per node serves all its candidates (each then costs O(a d)). Children with D² > χ²_{d(a+1)}(c) fail the
-   joint gate and are cut with their whole subtree; the others are tried nearest-first (smallest joint D²,
-   ties → lower observation index), then the star branch (k unpaired) last.
+   with new factor [[L, 0], [Wᵀ, L₂]]. Here μ_k + Wᵀw and L₂L₂ᵀ are the mean and covariance of landmark
+   k's prediction *conditioned on the pairings of H*, so the code keeps, for every later level q, the
+   block column W_q = L⁻¹ P[rows(H), rows(q)] (it grows by d rows per pairing: one block forward
+   substitution, O(a d²) per level) together with the conditional mean and Cholesky factor of q. A child's
+   D² is then D²_H + ‖L₂,q⁻¹(y_i − μ_{q|H})‖², O(d²) per candidate; no fresh factorisation ever happens.
+   These conditional distances depend only on H, so they are computed once per pairing and reused by all
+   the star nodes below it.
+2. **Bound.** possible = an upper bound on the pairings any descendant can still add; the node is
+   discarded when a + possible < pairings(Best), or a + possible = pairings(Best) and D²_H ≥ D²_Best (D²
+   only grows along a branch). For the star branch this is the lecture's "pairings(H) + remaining possible
+   ≥ best"; it is applied at every node. possible is the smallest of: the levels left; the unused
+   observations that are still a candidate of a later level and pass D²_H + d²(o | q, H) ≤ χ²_{d(a+U)} (U the
+   simple bound — D² of any superset is at least that of H + (q, o)); and the longest chain of later levels
+   q₁ < q₂ < … whose best conditional candidate keeps the i-th prefix jointly compatible,
+   D²_H + min_o d²(o | q_i, H) ≤ χ²_{d(a+i)}. When a + possible = pairings(Best) exactly, a descendant must
+   add that many pairings on distinct levels, so its D² is at least the corresponding order statistic of
+   the per-level minima; if that is ≥ D²_Best the node is discarded too. Every rule only removes nodes
+   that cannot beat Best: the result is the exact optimum of the tree (tested against exhaustive search).
+3. **Incumbent.** H completed with stars is a hypothesis: if it has more pairings than Best, or as many
+   and a smaller D², it becomes Best (objective: most pairings, then smallest D²).
+4. **Children.** The IC observations of landmark k not already used in H whose joint distance passes
+   D² ≤ χ²_{d(a+1)}(c) are tried nearest-first (smallest joint D², ties → lower observation index); the
+   others fail the joint gate and are cut with their whole subtree. The star branch (k unpaired) comes last.
+
+Note that with the joint gate applied at every node the admissible hypotheses are those whose every
+prefix (in level order) is jointly compatible, so the level order can matter in borderline cases.
 
 The search is an iterative depth-first loop compiled with numba (deterministic: no parallelism, no
 fastmath). ``max_nodes`` caps the number of expanded nodes; when it is hit the best hypothesis found so
@@ -117,7 +131,7 @@ def _jcbb_kernel(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, ma
     # Conditional predictions of every level's landmark given the first j pairings of H (j = 0..K):
     # mean cM[j, q] = μ_q + G_qᵀ w and Cholesky factor cL[j, q] of P_qq − G_qᵀ G_q, where the rows of
     # G = L⁻¹ P[rows(H), rows(levels)] grow by d rows per pairing (forward substitution of one block).
-    G = np.zeros((pmax, d * Tm))
+    GT = np.zeros((d * Tm, pmax))                 # Gᵀ, so the O(a) inner products run on contiguous rows
     cM = np.zeros((K + 1, Tm, d))
     cL = np.zeros((K + 1, Tm, d, d))
     cOK = np.zeros((K + 1, Tm), dtype=np.bool_)
@@ -132,7 +146,6 @@ def _jcbb_kernel(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, ma
     tmp = np.zeros(d)
     wn = np.zeros(d)
     Gn = np.zeros((d, d))
-    hyp_lev = np.zeros(max(K, 1), dtype=np.int64)
     used = np.zeros(m, dtype=np.bool_)
     mark = np.zeros(m, dtype=np.bool_)
     mins = np.zeros(Tm)
@@ -317,13 +330,13 @@ def _jcbb_kernel(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, ma
                     for a in range(d):
                         s = P[d * lt + a, d * lq + b]
                         for r in range(p):
-                            s -= G[r, d * t + a] * G[r, d * q + b]
+                            s -= GT[d * t + a, r] * GT[d * q + b, r]
                         for u in range(a):
                             s -= Lt[a, u] * Gn[u, b]
                         Gn[a, b] = s / Lt[a, a]
                 for a in range(d):
                     for b in range(d):
-                        G[p + a, d * q + b] = Gn[a, b]
+                        GT[d * q + b, p + a] = Gn[a, b]
                     sm = cM[k, q, a]
                     for u in range(d):
                         sm += Gn[u, a] * wn[u]
@@ -341,7 +354,6 @@ def _jcbb_kernel(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, ma
             D2 = lv_d2[t, c]
             used[o] = True
             idx[lt] = o
-            hyp_lev[k] = t
             k += 1
             lv_choice[t] = o
             obs_here = o
