@@ -18,6 +18,7 @@ EdgePointPrior     e = m − z, J = I₂.
 """
 
 import numpy as np
+from numba import njit
 
 from .angles import wrap_angle
 from .edge import BaseEdge
@@ -49,8 +50,58 @@ def se2_log_coefficients(theta):
     return alpha, half, dalpha
 
 
+@njit(cache=True)
+def _se2_between(xi, xj, z, jacobians):
+    """The EdgeSE2 model (one loop over edges, compiled): e = Log(z⁻¹ x_i⁻¹ x_j) and its Jacobians."""
+    n = len(z)
+    e = np.empty((n, 3))
+    ji = np.zeros((n, 3, 3))
+    jj = np.zeros((n, 3, 3))
+    two_pi = 2.0 * np.pi
+    for t in range(n):
+        ci, si = np.cos(xi[t, 2]), np.sin(xi[t, 2])
+        cz, sz = np.cos(z[t, 2]), np.sin(z[t, 2])
+        dx, dy = xj[t, 0] - xi[t, 0], xj[t, 1] - xi[t, 1]
+        trx, try_ = ci * dx + si * dy, -si * dx + ci * dy
+        ux, uy = trx - z[t, 0], try_ - z[t, 1]
+        tdx, tdy = cz * ux + sz * uy, -sz * ux + cz * uy
+        th = xj[t, 2] - xi[t, 2] - z[t, 2]
+        th = th - two_pi * np.floor((th + np.pi) / two_pi)
+        if th >= np.pi:
+            th -= two_pi
+        if abs(th) < 1e-4:
+            t2 = th * th
+            a = 1.0 - t2 / 12.0 - t2 * t2 / 720.0
+            da = -th / 6.0 - t2 * th / 180.0
+        else:
+            hs = 0.5 * th
+            cot = np.cos(hs) / np.sin(hs)
+            a = hs * cot
+            da = 0.5 * cot - 0.25 * th / np.sin(hs) ** 2
+        b = 0.5 * th
+        e[t, 0] = a * tdx + b * tdy
+        e[t, 1] = -b * tdx + a * tdy
+        e[t, 2] = th
+        if not jacobians:
+            continue
+        cg, sg = np.cos(xi[t, 2] + z[t, 2]), np.sin(xi[t, 2] + z[t, 2])
+        m00, m01 = a * cg - b * sg, a * sg + b * cg
+        m10, m11 = -b * cg - a * sg, -b * sg + a * cg
+        dvx, dvy = da * tdx + 0.5 * tdy, -0.5 * tdx + da * tdy
+        px, py = cz * try_ - sz * trx, -sz * try_ - cz * trx
+        vpx, vpy = a * px + b * py, -b * px + a * py
+        ji[t, 0, 0], ji[t, 0, 1], ji[t, 1, 0], ji[t, 1, 1] = -m00, -m01, -m10, -m11
+        ji[t, 0, 2], ji[t, 1, 2], ji[t, 2, 2] = vpx - dvx, vpy - dvy, -1.0
+        jj[t, 0, 0], jj[t, 0, 1], jj[t, 1, 0], jj[t, 1, 1] = m00, m01, m10, m11
+        jj[t, 0, 2], jj[t, 1, 2], jj[t, 2, 2] = dvx, dvy, 1.0
+    return e, ji, jj
+
+
 class EdgeSE2(BaseEdge):
-    """Relative pose between two SE2 vertices (see the module docstring for e and the Jacobians)."""
+    """Relative pose between two SE2 vertices (see the module docstring for e and the Jacobians).
+
+    The model is one compiled kernel (``_se2_between``) over all edges of the class.
+    """
 
     vertex_types = (VertexSE2, VertexSE2)
     measurement_dimension = 3
@@ -58,42 +109,9 @@ class EdgeSE2(BaseEdge):
     @staticmethod
     def evaluate(states, z, params, jacobians=True):
         xi, xj = states
-        ci, si = np.cos(xi[:, 2]), np.sin(xi[:, 2])
-        cz, sz = np.cos(z[:, 2]), np.sin(z[:, 2])
-        dx, dy = xj[:, 0] - xi[:, 0], xj[:, 1] - xi[:, 1]
-        # t_r = R(ψ_i)ᵀ (t_j − t_i)
-        trx, try_ = ci * dx + si * dy, -si * dx + ci * dy
-        ux, uy = trx - z[:, 0], try_ - z[:, 1]
-        tdx, tdy = cz * ux + sz * uy, -sz * ux + cz * uy
-        th = wrap_angle(xj[:, 2] - xi[:, 2] - z[:, 2])
-        a, b, da = se2_log_coefficients(th)
-        e = np.empty_like(z)
-        e[:, 0] = a * tdx + b * tdy
-        e[:, 1] = -b * tdx + a * tdy
-        e[:, 2] = th
-        if not jacobians:
-            return e, None
-        n = len(z)
-        # G = R(ψ_i + θ_z)ᵀ
-        cg, sg = np.cos(xi[:, 2] + z[:, 2]), np.sin(xi[:, 2] + z[:, 2])
-        # V⁻¹ G  (2x2)
-        m00 = a * cg - b * sg
-        m01 = a * sg + b * cg
-        m10 = -b * cg - a * sg
-        m11 = -b * sg + a * cg
-        # dV⁻¹/dθ t_d
-        dvx = da * tdx + 0.5 * tdy
-        dvy = -0.5 * tdx + da * tdy
-        # ∂t_d/∂ψ_i = R(θ_z)ᵀ (−S t_r) = R(θ_z)ᵀ [t_r_y, −t_r_x]
-        px, py = cz * try_ + sz * (-trx), -sz * try_ + cz * (-trx)
-        vpx, vpy = a * px + b * py, -b * px + a * py
-        ji = np.zeros((n, 3, 3))
-        jj = np.zeros((n, 3, 3))
-        ji[:, 0, 0], ji[:, 0, 1], ji[:, 1, 0], ji[:, 1, 1] = -m00, -m01, -m10, -m11
-        ji[:, 0, 2], ji[:, 1, 2], ji[:, 2, 2] = vpx - dvx, vpy - dvy, -1.0
-        jj[:, 0, 0], jj[:, 0, 1], jj[:, 1, 0], jj[:, 1, 1] = m00, m01, m10, m11
-        jj[:, 0, 2], jj[:, 1, 2], jj[:, 2, 2] = dvx, dvy, 1.0
-        return e, [ji, jj]
+        e, ji, jj = _se2_between(np.ascontiguousarray(xi, dtype=float), np.ascontiguousarray(xj, dtype=float),
+                                 np.ascontiguousarray(z, dtype=float), bool(jacobians))
+        return e, ([ji, jj] if jacobians else None)
 
 
 class EdgeSE2Prior(BaseEdge):
