@@ -1,0 +1,221 @@
+"""The DriveBot simulator: truth model, waypoint controller and sensors (spec §3).
+
+One ``step()`` moves tick k−1 → k:
+
+1. truth (Euler, wheelbase B) with the control u_{k−1} = (s, δ) chosen at the previous tick:
+       x ← x + s·DT·cos ψ,  y ← y + s·DT·sin ψ,  ψ ← wrap(ψ + s·DT·sin δ / B),  t ← t + DT;
+2. sensors for the new truth, each only if due (t ≥ its next time; then next += period + rand·dither):
+       GPS      z = [x, y] + R(ψ)·lever_arm + L_G n                    (L L^T = R_GPS)
+       laser    every landmark with ‖m − p‖ ≤ range (360°):  r = ‖m − p‖ + σ_r n₁,
+                β = wrap(atan2(m_y − y, m_x − x) − ψ + σ_β n₂)          (one event, 2×n data, 1-based ids)
+       compass  z = wrap(ψ + Δψ_C + σ_C n)
+3. the waypoint controller (below) computes u_k;
+4. odometry  z = [s, 0, s·sin δ / B] + L_O n, stamped t_k (only while running).
+
+Insertion order GPS, laser, compass, odometry, so the queue delivers odometry, compass, laser, GPS.
+
+Controller (deterministic): dX = wp − p, d = ‖dX‖. If d < 1 m the waypoint index advances; past the last
+waypoint the run stops (no control update, no odometry). Otherwise the coursework's one-tick **quirk**:
+dX = p − wp_new (the steering target points the wrong way for one tick). Then
+    s ← clamp(s + clamp(0.1·d − s, ±a_max·DT), [s_min, s_max]),
+    δ ← clamp(δ + clamp(wrap(atan2(dX_y, dX_x) − ψ − δ), ±δ̇_max·DT), ±δ_max).
+
+Randomness: one ``numpy.random.Generator`` (``seed`` may be an int or a Generator) draws, in this order,
+the three first-sensor offsets (GPS, laser, compass: rand·period) at ``start()``, then per tick the
+draws of each due, enabled sensor (noise, then the dither of its next time) and of the odometry noise.
+The noise draws happen even when ``perturb_with_noise`` is False (noise scale 0), so a noise-free run has
+exactly the event timing of the noisy run with the same seed.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+from .config import SimulatorConfiguration
+from .events import Event, EventQueue, EventType
+from .scenarios import Scenario
+
+__all__ = ["DriveBotSimulator", "wrap"]
+
+
+def wrap(a):
+    """Wrap angles into [−π, π) (element-wise)."""
+    return (np.asarray(a, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def _wrap1(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def make_rng(seed) -> np.random.Generator:
+    """A Generator from an int seed (or the Generator itself)."""
+    if isinstance(seed, np.random.Generator):
+        return seed
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer or a numpy Generator, got {seed!r}")
+    return np.random.default_rng(int(seed))
+
+
+class DriveBotSimulator:
+    """Generates the coursework's event stream for a scenario.
+
+    Usage::
+
+        sim = DriveBotSimulator(config, scenario, seed=0)
+        sim.start()
+        while sim.keep_running():
+            batch = sim.events()          # this tick's events in processing order
+            truth = sim.ground_truth()    # [x, y, ψ] at sim.time
+            ...
+            sim.step()
+    """
+
+    def __init__(self, config: SimulatorConfiguration, scenario: Scenario, seed=0):
+        if not isinstance(config, SimulatorConfiguration):
+            raise ValueError(f"config must be a SimulatorConfiguration, got {type(config).__name__}")
+        if not isinstance(scenario, Scenario):
+            raise ValueError(f"scenario must be a Scenario, got {type(scenario).__name__}")
+        config.validate()
+        self.config = config
+        self.scenario = scenario
+        self._rng = make_rng(seed)
+        self._noise_scale = 1.0 if config.perturb_with_noise else 0.0
+        self._L_odo = np.linalg.cholesky(config.r_odometry)
+        self._L_gps = np.linalg.cholesky(config.r_gps)
+        self._L_laser = np.linalg.cholesky(config.r_laser)
+        self._sigma_compass = math.sqrt(float(config.r_compass[0, 0]))
+        self._started = False
+
+    # -- state -----------------------------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        return self._t
+
+    @property
+    def step_number(self) -> int:
+        return self._step
+
+    def ground_truth(self) -> np.ndarray:
+        """The true vehicle state [x, y, ψ] at the current tick (a copy)."""
+        self._check_started()
+        return np.array([self._x, self._y, self._psi])
+
+    def keep_running(self) -> bool:
+        self._check_started()
+        return self._carry_on and self._step < self.config.maximum_step_number
+
+    def events(self) -> list[Event]:
+        """The current tick's events in processing order (the same list until the next ``step()``)."""
+        self._check_started()
+        return list(self._batch)
+
+    def _check_started(self):
+        if not self._started:
+            raise RuntimeError("call start() before using the simulator")
+
+    # -- running ---------------------------------------------------------------------------------------
+    def start(self) -> None:
+        """Reset to [0, 0, 0] at t = 0, u = 0; queue the initial condition and a zero odometry event."""
+        c = self.config
+        self._t = 0.0
+        self._step = 0
+        self._x = self._y = self._psi = 0.0
+        self._speed = self._steer = 0.0
+        self._wp_index = 0
+        self._carry_on = True
+        offs = self._rng.random(3)
+        self._next_gps = offs[0] * c.gps_measurement_period
+        self._next_laser = offs[1] * c.laser_measurement_period
+        self._next_compass = offs[2] * c.compass_measurement_period
+        self._started = True
+        q = EventQueue()
+        q.insert(Event(0.0, EventType.INITIAL_CONDITION, np.zeros(3), np.zeros((3, 3))))
+        q.insert(self._odometry_event())
+        self._batch = q.pop_all()
+
+    def step(self) -> None:
+        """Advance one tick and generate that tick's events."""
+        self._check_started()
+        c = self.config
+        # 1. truth with the control chosen at the previous tick
+        dist = self._speed * c.dt
+        self._x += dist * math.cos(self._psi)
+        self._y += dist * math.sin(self._psi)
+        self._psi = _wrap1(self._psi + dist * math.sin(self._steer) / c.wheelbase)
+        self._t += c.dt
+        self._step += 1
+        q = EventQueue()
+        # 2. sensors, insertion order GPS, laser, compass
+        if c.enable_gps and self._t >= self._next_gps:
+            q.insert(self._gps_event())
+            self._next_gps += c.gps_measurement_period + self._rng.random() * c.sensor_dither_time
+        if c.enable_laser and self._t >= self._next_laser:
+            ev = self._laser_event()
+            if ev is not None:
+                q.insert(ev)
+            self._next_laser += c.laser_measurement_period + self._rng.random() * c.sensor_dither_time
+        if c.enable_compass and self._t >= self._next_compass:
+            q.insert(self._compass_event())
+            self._next_compass += c.compass_measurement_period + self._rng.random() * c.sensor_dither_time
+        # 3. controller; 4. odometry while running
+        self._control()
+        if self._carry_on and c.enable_odometry:
+            q.insert(self._odometry_event())
+        self._batch = q.pop_all()
+
+    def _control(self) -> None:
+        c = self.config
+        wps = self.scenario.waypoints
+        wx, wy = wps[0, self._wp_index], wps[1, self._wp_index]
+        dx, dy = wx - self._x, wy - self._y
+        d = math.hypot(dx, dy)
+        if d < 1.0:
+            self._wp_index += 1
+            if self._wp_index >= wps.shape[1]:
+                self._carry_on = False
+                return
+            # the coursework's quirk: for this one tick the steering target points away from the new waypoint
+            dx, dy = self._x - wps[0, self._wp_index], self._y - wps[1, self._wp_index]
+            d = math.hypot(dx, dy)
+        dv = min(max(0.1 * d - self._speed, -c.max_acceleration * c.dt), c.max_acceleration * c.dt)
+        self._speed = min(max(self._speed + dv, c.min_speed), c.max_speed)
+        dd = _wrap1(math.atan2(dy, dx) - self._psi - self._steer)
+        dd = min(max(dd, -c.max_diff_delta_rate * c.dt), c.max_diff_delta_rate * c.dt)
+        self._steer = min(max(self._steer + dd, -c.max_delta), c.max_delta)
+        self._carry_on = True
+
+    # -- sensors ---------------------------------------------------------------------------------------
+    def _odometry_event(self) -> Event:
+        c = self.config
+        u = np.array([self._speed, 0.0, self._speed * math.sin(self._steer) / c.wheelbase])
+        z = u + self._noise_scale * (self._L_odo @ self._rng.standard_normal(3))
+        return Event(self._t, EventType.VEHICLE_ODOMETRY, z, c.r_odometry)
+
+    def _gps_event(self) -> Event:
+        c = self.config
+        cs, sn = math.cos(self._psi), math.sin(self._psi)
+        lx, ly = c.gps_position_offset
+        z = np.array([self._x + cs * lx - sn * ly, self._y + sn * lx + cs * ly])
+        z = z + self._noise_scale * (self._L_gps @ self._rng.standard_normal(2))
+        return Event(self._t, EventType.GPS, z, c.r_gps, offset=c.gps_position_offset.copy())
+
+    def _compass_event(self) -> Event:
+        c = self.config
+        n = self._rng.standard_normal()
+        z = _wrap1(self._psi + c.compass_angular_offset + self._noise_scale * self._sigma_compass * n)
+        return Event(self._t, EventType.COMPASS, np.array([z]), c.r_compass, offset=c.compass_angular_offset)
+
+    def _laser_event(self) -> Event | None:
+        c = self.config
+        lm = self.scenario.landmarks
+        dx = lm[0] - self._x
+        dy = lm[1] - self._y
+        r = np.hypot(dx, dy)
+        seen = np.flatnonzero(r <= c.laser_detection_range)
+        if seen.size == 0:
+            return None
+        noise = self._noise_scale * (self._L_laser @ self._rng.standard_normal((2, seen.size)))
+        z = np.vstack([r[seen] + noise[0], wrap(np.arctan2(dy[seen], dx[seen]) - self._psi + noise[1])])
+        return Event(self._t, EventType.LANDMARK, z, c.r_laser, landmark_ids=self.scenario.landmark_ids[seen])
