@@ -21,21 +21,30 @@ import gtsam
 from g2opy import g2opy as g2o
 
 from .. import datasets
-from .edges2d import EdgeSE2
+from .edges2d import EdgeRangeBearing, EdgeSE2
 from .optimizer import SparseOptimizer
-from .vertex import VertexSE2
+from .vertex import VertexPointXY, VertexSE2, VertexSE2Exp
 
 
 def warm_up():
-    """Compile (or load from numba's cache) the kernels on a tiny graph, so timings exclude it."""
-    g = SparseOptimizer()
-    a, b = VertexSE2(0, fixed=True), VertexSE2(1, [1, 0, 0])
-    g.add_vertex(a)
-    g.add_vertex(b)
-    g.add_edge(EdgeSE2([a, b], measurement=[1, 0, 0]))
-    g.initialize_optimization()
-    g.optimize(2)
-    g.compute_marginals()
+    """Compile (or load from numba's cache) every kernel on tiny graphs — block and scalar factorisation, both
+    vertex updates, all algorithms — so timings exclude compilation."""
+    for pose_class in (VertexSE2, VertexSE2Exp):
+        for with_point in (False, True):
+            g = SparseOptimizer()
+            a, b = pose_class(0, fixed=True), pose_class(1, [1, 0.1, 0])
+            g.add_vertex(a)
+            g.add_vertex(b)
+            g.add_edge(EdgeSE2([a, b], measurement=[1, 0, 0]))
+            if with_point:
+                p = VertexPointXY(0, [2, 1])
+                g.add_vertex(p)
+                g.add_edge(EdgeRangeBearing([a, p], measurement=[2.2, 0.4]))
+                g.add_edge(EdgeRangeBearing([b, p], measurement=[1.4, 0.8]))
+            g.initialize_optimization()
+            for algorithm in ("lm", "gn", "lm-gtsam"):
+                g.optimize(3, algorithm=algorithm)
+            g.compute_marginals()
 
 
 def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2):
