@@ -1,0 +1,124 @@
+"""DriveBotSLAMSystem and run_question: timing facts, per-question settings, χ² rule, bad input."""
+import math
+
+import numpy as np
+import pytest
+
+from helpers.drivebot import (DriveBotSLAMSystem, Event, EventType, Results, SimulatorConfiguration,
+                              run_question)
+from helpers.graph import GaugeFreedomError
+
+
+def _within_chi2_rule(res):
+    lo, hi = res.chi2_bounds()
+    return lo <= res.final_chi2 <= hi
+
+
+def test_q1_b_noise_free_estimate_equals_truth_and_lengths():
+    res = run_question("q1_b", perturb_with_noise=False)
+    assert isinstance(res, Results) and res.n_steps == 654
+    assert res.vehicle_state_history.shape == (3, 654) == res.vehicle_true_state_history.shape
+    assert np.allclose(res.state_error(), 0.0, atol=1e-9)
+    assert np.allclose(res.vehicle_state_time, res.vehicle_true_state_time)
+    assert res.chi2_history.shape == (1,) and res.final_chi2 < 1e-12
+    assert np.isnan(res.optimization_times[:-1]).all() and np.isfinite(res.optimization_times[-1])
+    assert np.all(res.vehicle_covariance_history[:, 0] == 0)       # the fixed first vertex
+    assert np.all(np.diff(res.vehicle_covariance_history[0, 1:]) > 0)  # dead reckoning: growing
+
+
+def test_q1_e_optimises_every_step_and_chi2_rule():
+    res = run_question("q1_e", enable_compass=True, maximum_step_number=120)
+    assert res.n_steps == 120 and np.isfinite(res.optimization_times).all()
+    assert res.chi2_history.size == 120 and res.chi2_history[0] == 0.0  # first: only the fixed vertex
+    assert _within_chi2_rule(res)
+    stats = res.graph_statistics()
+    assert stats["edges_by_type"]["VehicleKinematicsEdge"] == 119 and stats["vehicle_vertices"] == 120
+
+
+def test_q1_c_buggy_compass_blows_up_fixed_one_does_not():
+    buggy = run_question("q1_c", maximum_step_number=420)
+    fixed = run_question("q1_c", maximum_step_number=420, compass_edge="fixed")
+    assert buggy.final_chi2 > 1e4 and _within_chi2_rule(fixed)
+    assert buggy.chi2_time[0] == pytest.approx(1.9) and buggy.chi2_history.size == 21  # period 20 + the end
+
+
+def test_q2_c_graph_statistics():
+    res = run_question("q2_c")
+    s = res.graph_statistics()
+    assert (s["vehicle_vertices"], s["landmark_vertices"]) == (5273, 7)
+    assert abs(s["observations_per_step"] - 0.61) < 0.01 and abs(s["observations_per_landmark"] - 461) < 5
+    assert _within_chi2_rule(res)
+    x, P, ids = res.landmark_estimates()
+    assert x.shape == (2, 7) and P.shape == (2, 2, 7) and ids.tolist() == list(range(1, 8))
+    assert np.allclose(x, res.scenario.landmarks, atol=1.0)
+
+
+def test_q3_a_remove_all_prediction_edges_is_a_gauge_failure():
+    with pytest.raises(GaugeFreedomError):
+        run_question("q3_a", remove_prediction_edges=True, keep_first_prediction_edge=False,
+                     maximum_step_number=520)
+
+
+def test_q3_a_keep_first_masks_deleted_vertices():
+    res = run_question("q3_a", remove_prediction_edges=True, maximum_step_number=1100)
+    s = res.graph_statistics()
+    assert s["edges_by_type"]["VehicleKinematicsEdge"] == 1
+    gone = ~res.vehicle_in_graph
+    assert 0 < gone.sum() < 0.1 * res.n_steps
+    assert np.isnan(res.vehicle_state_history[:, gone]).all()
+    assert np.isnan(res.vehicle_covariance_history[:, gone]).all()
+    assert np.isfinite(res.vehicle_state_history[:, ~gone]).all()
+    assert _within_chi2_rule(res)
+
+
+def test_pre_optimization_hook_is_called():
+    calls = []
+    res = run_question("q2_b", maximum_step_number=30, pre_optimization_hook=lambda system: calls.append(
+        system.step_number))
+    assert calls == [5, 10, 15, 20, 25, 30] and res.chi2_history.size == 6
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    (dict(name="q9_z"), "unknown question"),
+    (dict(name="q1_b", radar=True), "unknown override"),
+    (dict(name="q1_b", optimization_period=0), "optimization_period"),
+    (dict(name="q1_b", optimization_period=-5), "optimization_period"),
+    (dict(name="q1_b", optimization_period=0.1), "optimization_period"),
+    (dict(name="q1_b", compass_edge="broken"), "compass_edge"),
+    (dict(name="q1_b", gps_measurement_period=0.0), "gps_measurement_period"),
+    (dict(name="q1_b", seed=-1), "seed"),
+    (dict(name="q1_b", remove_prediction_edges="yes"), "remove_prediction_edges"),
+    (dict(name="q1_b", pre_optimization_hook=3), "pre_optimization_hook"),
+])
+def test_run_question_bad_input(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        run_question(**kwargs)
+
+
+def test_event_for_a_disabled_sensor_and_other_bad_events():
+    system = DriveBotSLAMSystem(SimulatorConfiguration())
+    system.process_events([Event(0.0, EventType.VEHICLE_ODOMETRY, [0, 0, 0], np.eye(3)),
+                           Event(0.0, EventType.INITIAL_CONDITION, [0, 0, 0], np.zeros((3, 3)))])
+    with pytest.raises(ValueError, match="enable_gps"):
+        system.process_events([Event(0.1, EventType.GPS, [0, 0], np.eye(2))])
+    with pytest.raises(ValueError, match="INITIAL_CONDITION"):
+        system.process_events([Event(0.1, EventType.INITIAL_CONDITION, [0, 0, 0], np.zeros((3, 3)))])
+    with pytest.raises(ValueError, match="Event"):
+        system.process_events(["not an event"])
+    with pytest.raises(ValueError, match="config"):
+        DriveBotSLAMSystem(config="default")
+
+
+def test_one_vertex_per_tick_with_previous_odometry():
+    system = DriveBotSLAMSystem(SimulatorConfiguration(enable_compass=True), optimization_period=None)
+    system.process_events([Event(0.0, EventType.VEHICLE_ODOMETRY, [1.0, 0, 0], np.eye(3)),
+                           Event(0.0, EventType.INITIAL_CONDITION, [0, 0, 0], np.zeros((3, 3)))])
+    system.process_events([Event(0.1, EventType.VEHICLE_ODOMETRY, [2.0, 0, 0], np.eye(3)),
+                           Event(0.1, EventType.COMPASS, [0.0], [[0.01]])])
+    assert len(system.vehicle_vertices) == 2 and system.step_number == 2
+    assert np.allclose(system.vehicle_vertices[1].estimate, [0.1, 0, 0])  # predicted with u = [1, 0, 0]
+    assert system.vehicle_vertices[0].fixed
+    x, P = system.platform_estimate()
+    assert np.allclose(x, [0.1, 0, 0]) and P.shape == (3, 3) and P[2, 2] > 0
+    assert not system.recommend_optimization()
+    assert math.isclose(system.vehicle_vertices[1].time, 0.1)
