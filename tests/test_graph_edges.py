@@ -126,3 +126,33 @@ def test_per_object_error_uses_vectorised_model():
     ref, _ = EdgeSE2.evaluate([a.estimate[None], b.estimate[None]], np.array([[1.0, 0, 0]]), {})
     np.testing.assert_allclose(e.error(), ref[0])
     assert e.chi2() == pytest.approx(float(ref[0] @ np.diag([1, 2, 3]) @ ref[0]))
+
+
+def test_protocol_example_from_the_package_docstring():
+    """The DriveBot kinematics edge written exactly as in helpers.graph's docstring works and is correct."""
+    import helpers.graph as hg
+
+    doc = hg.__doc__
+    start = doc.index("    class VehicleKinematicsEdge(BaseEdge):")
+    end = doc.index("    edge = VehicleKinematicsEdge(")
+    source = "\n".join(line[4:] for line in doc[start:end].splitlines())
+    namespace = {"BaseEdge": hg.BaseEdge, "VertexSE2": VertexSE2, "np": np, "wrap_angle": wrap_angle}
+    exec(source, namespace)
+    cls = namespace["VehicleKinematicsEdge"]
+    rng = np.random.default_rng(21)
+    states = [_poses(rng, 30), _poses(rng, 30)]
+    z = rng.normal(size=(30, 3))
+    params = {"dt": rng.uniform(0.05, 0.5, 30)}
+    e, jac = cls.evaluate(states, z, params)
+    num = _central_difference(cls, states, z, params)
+    ok = np.abs(np.abs(wrap_angle(states[1][:, 2] - states[0][:, 2])) - np.pi) > 1e-3
+    for k in range(2):
+        np.testing.assert_allclose(jac[k][ok], num[k][ok], atol=1e-5, rtol=1e-5)
+    g = hg.SparseOptimizer()
+    a, b = VertexSE2(0, [0, 0, 0.3], fixed=True), VertexSE2(1, [0.0, 0.0, 0.0])
+    g.add_vertex(a)
+    g.add_vertex(b)
+    g.add_edge(cls([a, b], measurement=[2.0, 0.0, 0.5], dt=0.1))
+    g.initialize_optimization()
+    assert g.optimize(20) < 1e-20
+    np.testing.assert_allclose(b.estimate, [0.2 * np.cos(0.3), 0.2 * np.sin(0.3), 0.35], atol=1e-9)

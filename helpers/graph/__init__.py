@@ -8,7 +8,8 @@ Students build a graph one element at a time::
     g.add_vertex(a); g.add_vertex(b)
     g.add_edge(EdgeSE2([a, b], measurement=[1, 0, 0], information=np.eye(3)))
     g.initialize_optimization()          # builds the structure (again after any add/remove/set_fixed)
-    chi2 = g.optimize(50)                # coursework LM (spec §7.5); algorithm="gn" for Gauss–Newton
+    chi2 = g.optimize(50)                # coursework LM (spec §7.5); algorithm="gn" (Gauss–Newton) or
+                                         # "lm-gtsam" (GTSAM's default LM schedule); g.statistics per iteration
     cov = g.compute_marginals([b])[b]    # 3×3 block of H⁻¹ at the solution
 
 Conventions: e = h(x) − z, χ² = Σ eᵀΩe, H = Σ JᵀΩJ, b = Σ JᵀΩe, dX = H⁻¹ b (LM: (H + μI)⁻¹ b), X ← X ⊞ (−dX).
@@ -26,6 +27,11 @@ stamp, a landmark id) are ordinary attributes set in ``__init__`` after calling 
 
 Ids are allocated per class from 0 when not given; a graph rejects a second vertex with the same (class, id).
 
+If the class's ⊞ is not (to first order) plain addition of the update to the coordinates, also give the vectorised
+``oplus_jacobian_batch(x)`` (staticmethod, (V, d) → (V, d, d) = ∂(x ⊞ δ)/∂δ at δ = 0): edges keep giving
+Jacobians with respect to the coordinates, and the optimiser multiplies them by it. ``VertexSE2Exp`` (GTSAM's
+Pose2 update x ∘ Exp(δ), body-frame δ) is the example; its marginals are then covariances of δ.
+
 PROTOCOL — defining a new EDGE class
 ------------------------------------
 Subclass ``BaseEdge`` and set, at class level,
@@ -38,7 +44,7 @@ Subclass ``BaseEdge`` and set, at class level,
         states  list, states[k] is the (E, d_k) array of the estimates in slot k
         z       (E, m) measurements;  params {name: (E, *shape)}
         returns (e, jac): e (E, m) = h(x) − z (wrap angular components!), and jac = [J_0, J_1, ...] with
-                J_k = ∂e/∂(⊞-update of vertex k), shape (E, m, d_k) — or None when ``jacobians`` is False.
+                J_k = ∂e/∂(coordinates of vertex k) (= ∂e/∂δ for additive ⊞), shape (E, m, d_k) — or None.
     Write it with array operations only (no loop over E). Test J against central differences through ⊞.
 
 Example — the DriveBot velocity-form kinematics edge with a per-edge time step::
@@ -66,6 +72,14 @@ Example — the DriveBot velocity-form kinematics edge with a per-edge time step
             return e, [jk, jn]
 
     edge = VehicleKinematicsEdge([v_prev, v_new], measurement=u, information=np.linalg.inv(R_odo), dt=0.1)
+
+Many edges of one class at once (loaders): ``g.add_edges(EdgeClass, rows_of_vertices, measurements (E, m),
+information (E, m, m) or (m, m), **params)`` — vectorised validation, same result as adding them one by one.
+
+Performance model: adding an element is O(1) (amortised arrays); ``initialize_optimization`` is vectorised over
+edges (gather indices, Hessian pattern, AMD ordering on the vertex graph, symbolic LDLᵀ); each iteration calls every
+edge class's ``evaluate`` once, scatters JᵀΩJ with ``np.bincount`` and runs a numba LDLᵀ (3×3-block kernel when all
+free vertices have dimension 3). Marginals: Takahashi sparse inverse on the factor's pattern, no dense inverse.
 
 Per-object API (from ``BaseEdge``): ``set_vertex(k, v)``, ``vertex(k)``, ``vertices()``, ``set_measurement``,
 ``set_information`` (must be symmetric positive definite), ``measurement``, ``information``, ``error()``,
