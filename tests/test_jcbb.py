@@ -82,9 +82,8 @@ def exhaustive(density, Y, n_sigma):
     return -best[0], best[1], best[2], second
 
 
-def random_case(seed, n, m_clutter, n_sigma):
+def random_case(seed, n, m_clutter, n_sigma, d=2):
     rng = np.random.default_rng(seed)
-    d = 2
     A = rng.normal(size=(d * n, d * n)) * 0.3
     shared = np.tile(np.eye(d), (n, 1)) * rng.uniform(0.2, 1.5)    # a common (pose-like) error
     P = A @ A.T + shared @ shared.T + 0.05 * np.eye(d * n)
@@ -112,6 +111,17 @@ def test_jcbb_equals_exhaustive_search(seed, n, m_clutter, n_sigma):
     assert res.n_pairings == k
     assert res.d2 == pytest.approx(d2, rel=1e-9, abs=1e-12)
     if second - d2 > 1e-9 * max(1.0, d2):          # unique optimum → same idx
+        assert np.array_equal(res.idx, idx)
+
+
+@pytest.mark.parametrize("d", [1, 3])
+@pytest.mark.parametrize("seed", range(6))
+def test_other_observation_dimensions_equal_exhaustive_search(d, seed):
+    density, Y = random_case(seed, 4, 1, 2.0, d=d)
+    res = jcbb(density, Y, n_sigma=2.0)
+    k, d2, idx, second = exhaustive(density, Y, 2.0)
+    assert res.n_pairings == k and res.d2 == pytest.approx(d2, rel=1e-9, abs=1e-12)
+    if second - d2 > 1e-9 * max(1.0, d2):
         assert np.array_equal(res.idx, idx)
 
 
@@ -183,3 +193,24 @@ def test_bad_observations(Y, match):
 def test_bad_density():
     with pytest.raises(ValueError, match="density must be"):
         jcbb(np.zeros(4), np.zeros((2, 1)))
+
+
+def test_tree_and_association_figures(tmp_path, monkeypatch):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from helpers.association.plots import draw_association, draw_interpretation_tree, tree_layout
+
+    density = shifted_row(n=3)
+    mu = density.mean.reshape(-1, 2)
+    Y = np.column_stack([mu[0] + [0.6, 0], mu[1] + [0.6, 0], mu[2] + [0.6, 0], [0.3, 0.05]])
+    res = jcbb(density, Y, trace=True)
+    x, y = tree_layout(res.stats["trace"])
+    assert x.size == res.stats["trace"].parent.size and y[0] == 0 and np.all(y[1:] < 0)
+    fig, axes = plt.subplots(1, 2)
+    draw_interpretation_tree(axes[0], res.stats["trace"], best_idx=res.idx)
+    draw_association(axes[1], density, Y, res.idx, truth=np.arange(3), title="t")
+    assert len(axes[0].lines) == x.size - 1 and len(axes[1].lines) > 3
+    plt.close(fig)
