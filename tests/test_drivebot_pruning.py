@@ -210,3 +210,15 @@ def test_alternate_hook_drops_odd_vertices():
 def test_landmark_edge_table_bad_input():
     with pytest.raises(ValueError, match="system must"):
         pr.landmark_edge_table(object())
+
+
+def test_hook_on_the_drivebot_system():
+    from helpers.drivebot import run_question
+
+    hook = pr.KeepKPerVertex(k=1, seed=0)
+    res = run_question("q3_a", maximum_step_number=520, pre_optimization_hook=hook)
+    t = pr.landmark_edge_table(res.system)
+    assert hook.calls == 2 and hook.removed > 0
+    assert np.bincount(t["vertex"]).max() == 1
+    assert res.vehicle_in_graph.all()
+    assert res.graph_statistics()["landmark_edges"] == len(t["edges"])

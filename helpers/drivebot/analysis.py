@@ -1,12 +1,11 @@
-"""Analysis of DriveBot SLAM runs for the Q2/Q3 notebooks: χ² degrees of freedom, loop-closure detection,
-covariance determinants and ellipses, error RMS with removed vertices masked, the large-map "concentric
-tangent" fit, and the map plot with covariance ellipses.
+"""Analysis of DriveBot SLAM runs for the Q2/Q3 notebooks: loop-closure detection, covariance determinants
+and ellipses, position-error RMS over the vertices still in the graph, the large-map "concentric tangent"
+fit and the map plot with covariance ellipses (the factor-graph drawing and the state/covariance
+plots are in ``helpers.drivebot.plotting``).
 
-Everything operates on arrays (one call for all landmarks / vertices); the graph is only read.
-
-χ² rule (spec §11): at a converged optimum with correct information matrices
-    dof = Σ_edges dim(z) − Σ_free vertices dim(x),    χ² ≈ dof ± √(2·dof),
-and the notebooks assert |χ² − dof| ≤ 4·√(2·dof).
+Everything operates on arrays (one call for all landmarks / vertices); the graph is only read. Graph
+statistics and the χ² degrees of freedom come from the DriveBot system itself
+(``Results.graph_statistics()``, ``Results.chi2_bounds()``); this module does not repeat them.
 
 Covariance ellipse of a 2×2 block P = V diag(λ₁, λ₂) Vᵀ (λ₁ ≥ λ₂) at n_σ "sigmas" of a 2-D Gaussian:
 semi-axes a_i = √(λ_i · χ²₂(c)), c = 2Φ(n_σ) − 1, major axis along V[:, 0].
@@ -23,9 +22,9 @@ import numpy as np
 
 from ..gaussian import chi2inv, confidence_level
 
-__all__ = ["chi2_dof", "chi2_interval", "chi2_within", "covariance_determinants", "determinant_table",
-           "find_loop_closure", "position_error_rms", "masked", "ellipse_axes", "plot_covariance_ellipses",
-           "tangent_misalignment", "fit_tangent_centre", "graph_dof_counts", "draw_factor_graph"]
+__all__ = ["covariance_determinants", "determinant_table", "find_loop_closure", "position_error_rms",
+           "ellipse_axes", "plot_covariance_ellipses", "tangent_misalignment", "fit_tangent_centre",
+           "landmark_observations"]
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -58,45 +57,6 @@ def _nonneg_int(v, name):
     if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
         raise ValueError(f"{name} must be a non-negative integer, got {v!r}")
     return int(v)
-
-
-# ----------------------------------------------------------------------------------------------------
-# χ²
-# ----------------------------------------------------------------------------------------------------
-def graph_dof_counts(graph) -> dict:
-    """Measurement dimensions (by edge class) and free state dimensions of a graph.
-
-    Returns {"measurement": Σ dim z over edges, "free": Σ dim x over non-fixed vertices,
-    "dof": measurement − free, "by_edge_class": {class name: Σ dim z}}."""
-    by_class = {}
-    for e in graph.edges():
-        name = type(e).__name__
-        by_class[name] = by_class.get(name, 0) + int(type(e).measurement_dimension)
-    free = sum(int(type(v).dimension) for v in graph.vertices() if not v.fixed)
-    meas = sum(by_class.values())
-    return {"measurement": meas, "free": free, "dof": meas - free, "by_edge_class": by_class}
-
-
-def chi2_dof(graph) -> int:
-    """dof = (total measurement dimensions) − (free state dimensions) of ``graph`` (spec §11)."""
-    return graph_dof_counts(graph)["dof"]
-
-
-def chi2_interval(dof, k=4.0) -> tuple[float, float]:
-    """(dof − k·√(2·dof), dof + k·√(2·dof)); ``dof`` ≥ 0, ``k`` > 0."""
-    dof = _nonneg_int(dof, "dof")
-    if isinstance(k, bool) or not isinstance(k, numbers.Real) or not np.isfinite(k) or k <= 0:
-        raise ValueError(f"k must be a positive finite number, got {k!r}")
-    half = float(k) * np.sqrt(2.0 * dof)
-    return dof - half, dof + half
-
-
-def chi2_within(chi2, dof, k=4.0) -> bool:
-    """True when |χ² − dof| ≤ k·√(2·dof)."""
-    if isinstance(chi2, bool) or not isinstance(chi2, numbers.Real) or not np.isfinite(chi2) or chi2 < 0:
-        raise ValueError(f"chi2 must be a non-negative finite number, got {chi2!r}")
-    lo, hi = chi2_interval(dof, k)
-    return bool(lo <= chi2 <= hi)
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -195,22 +155,14 @@ def find_loop_closure(step, landmark, min_gap=300):
 # ----------------------------------------------------------------------------------------------------
 # errors and masks
 # ----------------------------------------------------------------------------------------------------
-def masked(values, keep):
-    """Copy of ``values`` (N,) or (N, d) / (d, N) with NaN where ``keep`` (N,) is False, so that plots show
-    gaps (not spikes) for vertices that left the graph."""
-    v = np.array(values, dtype=float)
-    keep = np.asarray(keep)
-    if keep.ndim != 1 or keep.dtype != bool:
-        raise ValueError(f"keep must be a 1-D boolean mask, got dtype {keep.dtype} shape {keep.shape}")
-    if v.ndim == 1 and v.shape[0] == keep.size:
-        v[~keep] = np.nan
-    elif v.ndim == 2 and v.shape[0] == keep.size:
-        v[~keep, :] = np.nan
-    elif v.ndim == 2 and v.shape[1] == keep.size:
-        v[:, ~keep] = np.nan
-    else:
-        raise ValueError(f"values of shape {v.shape} do not match a mask of length {keep.size}")
-    return v
+def landmark_observations(system):
+    """(tick, landmark id) of every landmark edge in the system's graph, in creation order.
+
+    The tick is the vehicle vertex id (vertex k is created at tick k)."""
+    from .pruning import landmark_edge_table
+
+    table = landmark_edge_table(system)
+    return table["vertex"], table["landmark"]
 
 
 def position_error_rms(estimate, truth, keep=None) -> float:
@@ -269,63 +221,3 @@ def fit_tangent_centre(points, P) -> np.ndarray:
     rhs = w * np.sum(u * points, axis=1)
     centre, *_ = np.linalg.lstsq(A, rhs, rcond=None)
     return centre
-
-
-# ----------------------------------------------------------------------------------------------------
-# drawing the factor graph
-# ----------------------------------------------------------------------------------------------------
-def draw_factor_graph(ax, graph, colors=None):
-    """Draw ``graph`` as a factor graph: pose vertices (``VertexSE2``) in creation order along a line,
-    point vertices (``VertexPointXY``) above them (each at the mean position of the poses observing it),
-    one small black square per edge at the centroid of its vertices, joined to each of them.
-
-    Returns {"vertices": {class name: count}, "edges": {class name: count}} (what was drawn)."""
-    from matplotlib.collections import LineCollection
-
-    from ..graph import VertexPointXY, VertexSE2
-
-    if not (hasattr(graph, "vertices") and hasattr(graph, "edges")):
-        raise ValueError(f"graph must be a SparseOptimizer, got {type(graph).__name__}")
-    colors = {"pose": "#1f77b4", "landmark": "#ff7f0e", "factor": "k"} if colors is None else colors
-    vertices = graph.vertices()
-    poses = [v for v in vertices if isinstance(v, VertexSE2)]
-    points = [v for v in vertices if isinstance(v, VertexPointXY)]
-    pos = {}
-    for i, v in enumerate(poses):
-        pos[id(v)] = (float(i), 0.0)
-    edges = graph.edges()
-    # landmark x = mean index of the poses that observe it; alternate heights to separate neighbours
-    for j, m in enumerate(points):
-        xs = [pos[id(u)][0] for e in m.edges() for u in e.vertices() if id(u) in pos]
-        pos[id(m)] = (float(np.mean(xs)) if xs else float(j), 2.0 + 0.6 * (j % 2))
-    segs, fx, fy = [], [], []
-    for e in edges:
-        pts = np.array([pos[id(u)] for u in e.vertices()])
-        c = pts.mean(axis=0) if len(pts) > 1 else pts[0] + [0.0, -0.6]
-        fx.append(c[0])
-        fy.append(c[1])
-        segs.extend([[tuple(c), tuple(p)] for p in pts])
-    ax.add_collection(LineCollection(segs, colors="0.55", linewidths=0.8, zorder=1))
-    pp = np.array([pos[id(v)] for v in poses]).reshape(-1, 2)
-    fixed = np.array([v.fixed for v in poses], bool)
-    ax.scatter(pp[~fixed, 0], pp[~fixed, 1], s=160, c=colors["pose"], zorder=3, label="vehicle vertex")
-    if fixed.any():
-        ax.scatter(pp[fixed, 0], pp[fixed, 1], s=160, facecolors="white", edgecolors=colors["pose"],
-                   hatch="////", zorder=3, label="fixed vehicle vertex")
-    if points:
-        lp = np.array([pos[id(v)] for v in points])
-        ax.scatter(lp[:, 0], lp[:, 1], s=200, marker="s", c=colors["landmark"], zorder=3, label="landmark vertex")
-        for v, (x, y) in zip(points, lp):
-            ax.annotate(str(getattr(v, "landmark_id", v.id)), (x, y), ha="center", va="center", fontsize=8,
-                        zorder=4)
-    ax.scatter(fx, fy, s=22, marker="s", c=colors["factor"], zorder=2, label="edge (factor)")
-    ax.set_xlim(-1, max(len(poses), 1))
-    ax.set_ylim(-1.2, 3.3)
-    ax.set_yticks([])
-    ax.set_xlabel("vehicle vertex (tick)")
-    counts_v, counts_e = {}, {}
-    for v in vertices:
-        counts_v[type(v).__name__] = counts_v.get(type(v).__name__, 0) + 1
-    for e in edges:
-        counts_e[type(e).__name__] = counts_e.get(type(e).__name__, 0) + 1
-    return {"vertices": counts_v, "edges": counts_e}
