@@ -7,7 +7,7 @@ from helpers.association.evaluation import run_trials, score, score_many
 from helpers.association.jcbb import jcbb
 from helpers.association.maximum_likelihood import maximum_likelihood, ml_scores
 from helpers.association.nearest_neighbour import mahalanobis_nn, nearest_neighbour, surprisal_nn
-from helpers.association.scenarios import observe_points, range_bearing_scenario
+from helpers.association.scenarios import lab_camera_scenario, observe_points, range_bearing_scenario
 from helpers.gaussian import Gaussian, chi2inv, confidence_level
 
 ALGORITHMS = [nearest_neighbour, mahalanobis_nn, maximum_likelihood, jcbb,
@@ -173,6 +173,25 @@ def test_scenario_is_seeded_and_consistent():
 def test_scenario_bad_inputs(kwargs, match):
     with pytest.raises(ValueError, match=match):
         range_bearing_scenario(**kwargs)
+
+
+def test_lab_camera_scenario():
+    a = lab_camera_scenario(seed=3, n_clutter=50, p_detect=0.8)
+    b = lab_camera_scenario(seed=3, n_clutter=50, p_detect=0.8)
+    np.testing.assert_array_equal(a.Y, b.Y)
+    assert a.n == 9 and a.density.size == 18 and a.is_clutter.sum() == 50
+    assert a.m == 50 + np.count_nonzero(a.truth >= 0)
+    k = np.flatnonzero(a.truth >= 0)
+    mu = a.density.mean.reshape(9, 2)
+    d2 = prepare(a.density, a.Y).ic_d2[k, a.truth[k]]
+    assert np.all(d2 < 30.0)                        # true features sit near their predictions
+    assert np.all((a.Y[0] >= 0) & (a.Y[0] <= 1920 + 50) & (a.Y[1] >= -50) & (a.Y[1] <= 1440 + 50))
+    res = jcbb(a.density, a.Y)
+    assert np.array_equal(res.idx, a.truth) and np.all(np.isfinite(mu))
+    for kwargs, match in (({}, "seed or rng"), ({"seed": 1, "n_clutter": -1}, "n_clutter"),
+                          ({"seed": 1, "p_detect": 2.0}, "p_detect"), ({"seed": 1, "pixel_sigma": 0.0}, "pixel_sigma")):
+        with pytest.raises(ValueError, match=match):
+            lab_camera_scenario(**kwargs)
 
 
 def test_observe_points_bad_inputs():

@@ -24,9 +24,14 @@ The predicted-measurement density of the n candidate landmarks is the first-orde
 density through h (``Gaussian.transform``, QR form) with the measurement noise added, so it carries the
 full cross-covariance that joint compatibility needs. Ground truth ``truth`` has one entry per candidate
 landmark: the column of Y holding its observation, or −1 (not observed or missed).
+
+:func:`lab_camera_scenario` is the same idea for the lab's camera scene (Lab 8): the 39-dimensional demo
+state and the calibrated camera, truth drawn from the state density, pixel observations of the nine
+landmarks plus uniform clutter over the image (the corner detector's self-similar texture).
 """
 from __future__ import annotations
 
+import functools
 import numbers
 from dataclasses import dataclass
 
@@ -34,7 +39,8 @@ import numpy as np
 
 from helpers.gaussian import Gaussian
 
-__all__ = ["Scenario", "observe_points", "range_bearing_scenario", "DEFAULT_POSE_CORRELATION"]
+__all__ = ["Scenario", "observe_points", "range_bearing_scenario", "lab_camera_scenario",
+           "DEFAULT_POSE_CORRELATION"]
 
 #: Correlation of the pose estimate errors (x, y, θ) used unless another is given.
 DEFAULT_POSE_CORRELATION = np.array([[1.0, 0.3, 0.2],
@@ -218,3 +224,57 @@ def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size:
     return Scenario(density=density, Y=Y, truth=truth, candidates=candidates,
                     is_clutter=source < 0, pose_true=pose_true, pose_est=pose_est, pose_cov=pose_cov,
                     landmarks_true=lm_true, landmarks_est=lm_est)
+
+
+@functools.lru_cache(maxsize=1)
+def _lab_scene():
+    """The lab's camera and demo state, built once (reading the camera XML is the slow part)."""
+    from helpers.camera import load_lab_camera
+    from helpers.state_slam import lab_demo_state
+
+    return load_lab_camera(), lab_demo_state()
+
+
+def lab_camera_scenario(seed=None, rng=None, *, n_clutter: int = 1000, p_detect: float = 1.0,
+                        pixel_sigma: float = 1.0) -> Scenario:
+    """One seeded association problem in the lab's camera scene, with ground truth.
+
+    The true state is drawn from the Lab 8 demo state density (``helpers.state_slam.lab_demo_state``);
+    each of the nine landmarks is detected with probability ``p_detect`` at its true pixel
+    (``predict_feature_bundle`` at the true state) plus N(0, pixel_sigma² I) noise; ``n_clutter``
+    spurious features are uniform over the 1920 × 1440 image. The density is the predicted bundle of the
+    nine landmarks at the mean state with the pixel noise added. Pose fields hold the 6-D camera/body pose
+    [r; Θ]; landmark fields hold the 3-D positions.
+    """
+    if rng is None:
+        if seed is None:
+            raise ValueError("give seed or rng: every scenario must be reproducible")
+        rng = np.random.default_rng(seed)
+    elif not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    if isinstance(n_clutter, bool) or not isinstance(n_clutter, numbers.Integral) or n_clutter < 0:
+        raise ValueError(f"n_clutter must be an integer >= 0, got {n_clutter!r}")
+    if isinstance(p_detect, bool) or not isinstance(p_detect, numbers.Real) or not 0.0 <= p_detect <= 1.0:
+        raise ValueError(f"p_detect must be a probability in [0, 1], got {p_detect!r}")
+    pixel_sigma = _positive(pixel_sigma, "pixel_sigma")
+    camera, state = _lab_scene()
+    n = state.number_landmarks
+    sel = np.arange(n)
+    x_true = state.density.simulate(rng)
+    h_true, _ = state.predict_feature_bundle(camera, sel, x=x_true)
+    detected = np.flatnonzero(rng.uniform(size=n) < p_detect)
+    z_det = h_true.reshape(n, 2)[detected] + pixel_sigma * rng.standard_normal((detected.size, 2))
+    W, H = camera.image_size
+    z_clut = np.column_stack([rng.uniform(0, W, n_clutter), rng.uniform(0, H, n_clutter)])
+    Z = np.vstack([z_det, z_clut])
+    perm = rng.permutation(Z.shape[0])
+    Y = Z[perm].T.copy()
+    source = np.concatenate([detected, np.full(n_clutter, -1)])[perm]
+    density = state.predict_feature_bundle_density(camera, sel, noise=Gaussian(np.zeros(2), pixel_sigma * np.eye(2)))
+    truth = np.full(n, -1, dtype=np.intp)
+    cols = np.flatnonzero(source >= 0)
+    truth[source[cols]] = cols
+    mean = state.density.mean
+    return Scenario(density=density, Y=Y, truth=truth, candidates=sel, is_clutter=source < 0,
+                    pose_true=x_true[6:12], pose_est=mean[6:12], pose_cov=state.density.cov[6:12, 6:12],
+                    landmarks_true=x_true[12:].reshape(n, 3), landmarks_est=mean[12:].reshape(n, 3))
