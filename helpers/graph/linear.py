@@ -407,8 +407,9 @@ def _lookup(lp, li, zx, zd, pi, pj):
 def sparse_inverse_on_pattern(solver, rows, cols):
     """Entries (H⁻¹)[rows, cols] (original ordering) from the current factorisation of ``solver``.
 
-    Every requested entry must lie in the filled pattern (true for entries inside a vertex's diagonal block and
-    for pairs of vertices joined by an edge); otherwise NaN is returned for it.
+    Every requested entry must lie in the filled pattern (true for entries inside a vertex's diagonal block and,
+    on the scalar path, for pairs of vertices joined by an edge); otherwise NaN is returned for it. On the block
+    path only entries inside one vertex's block are available (all that ``compute_marginals`` needs).
     """
     pat = solver.pattern
     if pat.block:  # block recursion: the diagonal blocks (entries inside one vertex)
