@@ -32,7 +32,7 @@ import time as _time
 from dataclasses import dataclass, field
 
 import numpy as np
-from tqdm.auto import tqdm
+from tqdm import tqdm
 
 from .config import SimulatorConfiguration
 from .scenarios import Scenario, load_scenario

@@ -311,6 +311,19 @@ class DriveBotSLAMSystem:
                 P[:, :, k] = marg[v]
         return x, P, np.array(ids, dtype=np.int64)
 
+    def edge_residuals(self, edge_class):
+        """(times (E,), errors (E, m)) of every edge of ``edge_class`` in the graph, evaluated in one call of the
+        class's vectorised model at the current estimates; times are those of each edge's first vertex."""
+        edges = [e for e in self.graph.edges() if type(e) is edge_class]
+        m = int(edge_class.measurement_dimension)
+        if not edges:
+            return np.zeros(0), np.zeros((0, m))
+        states = [np.array([e.vertex(k).estimate for e in edges]) for k in range(len(edge_class.vertex_types))]
+        z = np.array([e.measurement for e in edges])
+        params = {name: np.array([e.parameter(name) for e in edges]) for name in edge_class._param_defaults}
+        err, _ = edge_class.evaluate(states, z, params, jacobians=False)
+        return np.array([getattr(e.vertex(0), "time", np.nan) for e in edges]), err
+
     # ================================================================================= statistics
     def graph_statistics(self) -> dict:
         """Counts by type from the graph itself (spec §12)::
