@@ -6,7 +6,7 @@ import pytest
 
 from helpers.drivebot import (DriveBotSimulator, Event, EventQueue, EventType, SimulatorConfiguration,
                               load_scenario)
-from helpers.drivebot.scenarios import SCENARIO_NAMES
+from helpers.drivebot.scenarios import LARGE_MAP_SEED, SCENARIO_NAMES
 
 
 def _run(config, scenario, seed=0):
@@ -153,7 +153,7 @@ def test_scenarios_load_and_unknown_name():
 
 
 def test_large_map_landmarks_are_the_seeded_draw():
-    rng = np.random.default_rng(20240225)
+    rng = np.random.default_rng(LARGE_MAP_SEED)
     assert np.allclose(load_scenario("large_map").landmarks, np.round(rng.uniform(0, 100, (2, 200)), 3))
 
 
