@@ -77,9 +77,10 @@ Many edges of one class at once (loaders): ``g.add_edges(EdgeClass, rows_of_vert
 information (E, m, m) or (m, m), **params)`` — vectorised validation, same result as adding them one by one.
 
 Performance model: adding an element is O(1) (amortised arrays); ``initialize_optimization`` is vectorised over
-edges (gather indices, Hessian pattern, AMD ordering on the vertex graph, symbolic LDLᵀ); each iteration calls every
-edge class's ``evaluate`` once, scatters JᵀΩJ with ``np.bincount`` and runs a numba LDLᵀ (3×3-block kernel when all
-free vertices have dimension 3). Marginals: Takahashi sparse inverse on the factor's pattern, no dense inverse.
+edges (gather indices, Hessian pattern); the first factorisation of a pattern builds a ``qdldl.Solver`` (AMD
+ordering, symbolic LDLᵀ); each iteration calls every edge class's ``evaluate`` once, scatters JᵀΩJ with
+``np.bincount`` and refactorises with ``Solver.update``. Marginals: Takahashi sparse inverse on qdldl's L, no dense
+inverse.
 
 Per-object API (from ``BaseEdge``): ``set_vertex(k, v)``, ``vertex(k)``, ``vertices()``, ``set_measurement``,
 ``set_information`` (must be symmetric positive definite), ``measurement``, ``information``, ``error()``,

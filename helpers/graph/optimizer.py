@@ -12,7 +12,8 @@ Gauge check: every connected component of free vertices must touch a fixed verte
 
 Iteration (no Python loop over edges): per edge class, gather the slot states, call the class's ``evaluate``,
 whiten (ẽ = W e, J̃_k = W J_k), form χ² = Σ‖ẽ‖², b_k = J̃_kᵀ ẽ, H_kl = J̃_kᵀ J̃_l, scatter with ``np.bincount``,
-factorise with qdldl (symbolic analysis reused), solve dX = (H + μI)⁻¹ b and step X ⊞ (−dX) per vertex class.
+factorise with qdldl (``Solver.update``: its AMD ordering and symbolic analysis are reused), solve
+dX = (H + μI)⁻¹ b and step X ⊞ (−dX) per vertex class.
 
 Levenberg–Marquardt exactly as the coursework (Lourakis, SBA Fig. 2), τ = 1e−3, ε1 = ε2 = ε3 = 1e−12, ε4 = 0:
     R0 = χ²(X), (H, b) at X; stop if ‖b‖∞ < ε1;  μ = τ·max diag H, ν = 2
@@ -512,8 +513,7 @@ class SparseOptimizer:
         else:
             rows_c = cols_c = brow_c = np.zeros(0, dtype=np.int64)
             valid_c = np.zeros(0, dtype=bool)
-        block_of = np.repeat(np.arange(len(free_h)), dims[free_h])  # vertex of every free index
-        pattern = HessianPattern(n, rows_c, cols_c, valid_c, block_of)
+        pattern = HessianPattern(n, rows_c, cols_c, valid_c)
         self._hidx = hidx
         self._struct = {"n": n, "groups": groups, "manifold": manifold, "nh": nh, "free_off": free_off, "blocks": blocks,
                         "pattern": pattern, "brow": brow_c}

@@ -27,8 +27,8 @@ from .vertex import VertexPointXY, VertexSE2, VertexSE2Exp
 
 
 def warm_up():
-    """Compile (or load from numba's cache) every kernel on tiny graphs — block and scalar factorisation, both
-    vertex updates, all algorithms — so timings exclude compilation."""
+    """Compile (or load from numba's cache) every kernel on tiny graphs — pose-only and mixed graphs, both
+    vertex updates, all algorithms, marginals — so timings exclude compilation."""
     for pose_class in (VertexSE2, VertexSE2Exp):
         for with_point in (False, True):
             g = SparseOptimizer()
