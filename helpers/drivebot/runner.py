@@ -66,6 +66,7 @@ class Results:
     """What a run produced (N = number of processed ticks = number of vehicle vertices).
 
     optimization_times (N,)          wall time of each optimisation at its tick, NaN where none ran
+    optimization_iterations (N,)     LM iterations of that optimisation (0 where none ran)
     chi2_time, chi2_history (K,)     tick time and χ² after each optimisation (including the final one)
     vehicle_true_state_time (N,), vehicle_true_state_history (3×N)
     vehicle_state_time (N,), vehicle_state_history (3×N)      smoothed estimates from the final graph
@@ -88,6 +89,7 @@ class Results:
     vehicle_covariance_history: np.ndarray
     vehicle_in_graph: np.ndarray
     system: DriveBotSLAMSystem
+    optimization_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     run_time: float = field(default=float("nan"))
 
     @property
@@ -157,7 +159,7 @@ def run(config: SimulatorConfiguration, scenario: Scenario, seed=0, progress: bo
     sim = DriveBotSimulator(config, scenario, seed=rng)
     system = DriveBotSLAMSystem(config, **slam_options)
     t_start = _time.perf_counter()
-    opt_times, true_t, true_x = [], [], []
+    opt_times, opt_iters, true_t, true_x = [], [], [], []
     chi2_t, chi2_h = [], []
     sim.start()
     total = None if math.isinf(config.maximum_step_number) else int(config.maximum_step_number)
@@ -170,10 +172,12 @@ def run(config: SimulatorConfiguration, scenario: Scenario, seed=0, progress: bo
                 t0 = _time.perf_counter()
                 chi2 = system.optimize()
                 opt_times.append(_time.perf_counter() - t0)
+                opt_iters.append(system.graph.iterations)
                 chi2_t.append(sim.time)
                 chi2_h.append(chi2)
             else:
                 opt_times.append(np.nan)
+                opt_iters.append(0)
             true_t.append(sim.time)
             true_x.append(sim.ground_truth())
             sim.step()
@@ -182,6 +186,7 @@ def run(config: SimulatorConfiguration, scenario: Scenario, seed=0, progress: bo
         t0 = _time.perf_counter()
         chi2 = system.optimize(20)
         opt_times[-1] = _time.perf_counter() - t0
+        opt_iters[-1] = system.graph.iterations
         chi2_t.append(true_t[-1])
         chi2_h.append(chi2)
     T, X, P, in_graph = system.platform_estimate_history()
@@ -190,4 +195,4 @@ def run(config: SimulatorConfiguration, scenario: Scenario, seed=0, progress: bo
                    chi2_history=np.array(chi2_h), vehicle_true_state_time=np.array(true_t),
                    vehicle_true_state_history=np.array(true_x).T, vehicle_state_time=T,
                    vehicle_state_history=X, vehicle_covariance_history=P, vehicle_in_graph=in_graph,
-                   system=system, run_time=_time.perf_counter() - t_start)
+                   system=system, optimization_iterations=np.array(opt_iters, dtype=np.int64), run_time=_time.perf_counter() - t_start)
