@@ -416,9 +416,8 @@ def test_ldl_solver_and_sparse_inverse_against_dense():
     bad[pattern.diag_pos[7]] = -1.0
     assert not solver.factor(pattern, bad).ok
     assert np.all(np.isnan(solver.solve(b)))
-    # a zero pivot on the first factorisation of a pattern (qdldl refuses it): still analysed, reported not ok
-    zero = np.zeros_like(data)
-    fresh = LDLSolver().factor(pattern, zero)
+    # a zero matrix (qdldl's constructor would refuse it): analysed on the stand-in, reported not ok
+    fresh = LDLSolver().factor(pattern, np.zeros_like(data))
     assert not fresh.ok
     assert fresh.factor(pattern, data).ok
     np.testing.assert_allclose(fresh.solve(b), np.linalg.solve(H, b), rtol=1e-10, atol=1e-12)

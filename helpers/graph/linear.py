@@ -11,6 +11,8 @@ Factorisation. LDLᵀ by the maintained library qdldl (chosen by measurement, pe
 refactor on W10000 against cholespy 139 ms and splu 133 ms). ``qdldl.Solver`` is built once per pattern: it computes
 the AMD fill-reducing ordering P and the symbolic analysis (elimination tree, column counts of L); every later
 matrix with the same pattern goes through ``Solver.update`` (numeric factorisation only) and ``Solver.solve``.
+The solver is built in ``initialize_optimization`` on a diagonally dominant matrix with H's pattern, so its
+construction (which also factorises) never meets a zero pivot and the iterations only refactorise.
 qdldl factorises quasi-definite matrices without complaint, so positive definiteness is checked on D.
 
 Marginals (Takahashi et al. 1973). qdldl's factors satisfy Pᵀ H P = (I + L) D (I + L)ᵀ with P[perm[j], j] = 1
@@ -151,28 +153,28 @@ class HessianPattern:
 
 
 class LDLSolver:
-    """LDLᵀ of H through ``qdldl.Solver``: AMD ordering and symbolic analysis once per pattern, then
-    ``update`` (numeric refactorisation) for every new matrix with that pattern (LM only changes the diagonal)."""
+    """LDLᵀ of H through ``qdldl.Solver``: ``analyse`` builds the solver once per pattern (AMD ordering, symbolic
+    analysis, on a positive definite stand-in with that pattern), ``factor`` then only calls ``update`` (numeric
+    refactorisation) for every new matrix with that pattern (LM only changes the diagonal)."""
 
     def __init__(self):
         self.pattern = None
         self.qdldl = None
         self.ok = False
 
+    def analyse(self, pattern):
+        """Ordering and symbolic factorisation for ``pattern`` (once per structure change)."""
+        self.pattern = pattern
+        self.ok = False
+        self.qdldl = qdldl.Solver(pattern.upper(pattern.surrogate()), upper=True) if pattern.n else None
+        return self
+
     def factor(self, pattern, data):
         """Factorise the matrix with upper-triangle CSC ``data`` on ``pattern``; ``ok`` says whether it is
         positive definite (every pivot d_i > 0)."""
-        upper = pattern.upper(data)
-        if self.pattern is not pattern or self.qdldl is None:
-            self.qdldl = None
-            try:
-                self.qdldl = qdldl.Solver(upper, upper=True)
-            except RuntimeError:  # a zero pivot: analyse the pattern on a positive definite stand-in
-                self.qdldl = qdldl.Solver(pattern.upper(pattern.surrogate()), upper=True)
-                self.qdldl.update(upper, upper=True)
-            self.pattern = pattern
-        else:
-            self.qdldl.update(upper, upper=True)
+        if self.pattern is not pattern:
+            self.analyse(pattern)
+        self.qdldl.update(pattern.upper(data), upper=True)
         d = self.qdldl.factors()[1]
         self.ok = bool(np.all(d > 0.0) and np.all(np.isfinite(d)))
         return self

@@ -514,6 +514,7 @@ class SparseOptimizer:
             rows_c = cols_c = brow_c = np.zeros(0, dtype=np.int64)
             valid_c = np.zeros(0, dtype=bool)
         pattern = HessianPattern(n, rows_c, cols_c, valid_c)
+        self._solver.analyse(pattern)
         self._hidx = hidx
         self._struct = {"n": n, "groups": groups, "manifold": manifold, "nh": nh, "free_off": free_off, "blocks": blocks,
                         "pattern": pattern, "brow": brow_c}
