@@ -120,3 +120,10 @@ def test_vertices_in_a_graph_and_bad_input():
         VehicleKinematicsEdge([a, VehicleVertex(0.1)], measurement=[1, 0, 0], information=-np.eye(3))
     with pytest.raises(ValueError, match="both vertices"):
         VehicleKinematicsEdge(measurement=[1, 0, 0]).initialize()
+
+
+@pytest.mark.parametrize("x,u,dt", [([0, 0], [1, 0, 0], 0.1), ([0, 0, 0], [1, 0, 0], 0.0),
+                                    ([0, 0, 0], [1, 0, 0], np.nan), (np.zeros((2, 2, 3)), [1, 0, 0], 0.1)])
+def test_predict_bad_input(x, u, dt):
+    with pytest.raises(ValueError):
+        predict(x, u, dt)

@@ -122,3 +122,28 @@ def test_one_vertex_per_tick_with_previous_odometry():
     assert np.allclose(x, [0.1, 0, 0]) and P.shape == (3, 3) and P[2, 2] > 0
     assert not system.recommend_optimization()
     assert math.isclose(system.vehicle_vertices[1].time, 0.1)
+
+
+def test_plotting_and_residuals_bad_input_and_smoke():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from helpers.drivebot.plotting import draw_factor_graph, plot_covariances, plot_state_errors
+
+    res = run_question("q1_e", enable_compass=True, maximum_step_number=15)
+    fig, axes = plt.subplots(3, 1)
+    plot_state_errors(res, axes)
+    plot_covariances(res, axes)
+    draw_factor_graph(res.system, axes[0])
+    with pytest.raises(ValueError, match="results"):
+        plot_state_errors("res", axes)
+    with pytest.raises(ValueError, match="axes"):
+        plot_covariances(res, axes[:2])
+    with pytest.raises(ValueError, match="n_sigma"):
+        plot_state_errors(res, axes, n_sigma=-1)
+    with pytest.raises(ValueError, match="system"):
+        draw_factor_graph(res, axes[0])
+    with pytest.raises(ValueError, match="edge_class"):
+        res.system.edge_residuals("EdgeHeadingPrior")
+    plt.close(fig)

@@ -63,6 +63,10 @@ def predict(x, u, dt):
     x = np.asarray(x, dtype=float)
     u = np.asarray(u, dtype=float)
     dt = np.asarray(dt, dtype=float)
+    if x.shape[-1:] != (3,) or u.shape[-1:] != (3,) or x.ndim > 2 or u.ndim > 2:
+        raise ValueError(f"x and u must have shape (3,) or (E, 3), got {x.shape} and {u.shape}")
+    if dt.ndim > 1 or not (np.all(np.isfinite(dt)) and np.all(dt > 0)):
+        raise ValueError(f"dt must be positive and finite (scalar or (E,)), got {dt!r}")
     c, s = np.cos(x[..., 2]), np.sin(x[..., 2])
     out = np.empty(np.broadcast_shapes(x.shape, u.shape))
     out[..., 0] = x[..., 0] + dt * (c * u[..., 0] - s * u[..., 1])

@@ -26,6 +26,11 @@ _STYLE = {
 
 def draw_factor_graph(system, ax, title: str | None = None) -> None:
     """Draw ``system.graph`` (a DriveBotSLAMSystem) on ``ax``; see the module docstring for the layout."""
+    from .slam_system import DriveBotSLAMSystem
+
+    if not isinstance(system, DriveBotSLAMSystem):
+        raise ValueError(f"system must be a DriveBotSLAMSystem, got {type(system).__name__}")
+    _check_axes(ax, None)
     verts = system.graph.vertices()
     pos = {}
     vehicles = [v for v in verts if isinstance(v, VehicleVertex)]
@@ -67,8 +72,29 @@ def draw_factor_graph(system, ax, title: str | None = None) -> None:
         ax.set_title(title)
 
 
+def _check_axes(axes, n):
+    if n is None:
+        if not hasattr(axes, "plot"):
+            raise ValueError(f"ax must be a matplotlib Axes, got {type(axes).__name__}")
+        return
+    axes = list(np.ravel(axes))
+    if len(axes) != n or not all(hasattr(a, "plot") for a in axes):
+        raise ValueError(f"axes must be {n} matplotlib Axes, got {len(axes)} object(s)")
+
+
+def _check_results(results):
+    from .runner import Results
+
+    if not isinstance(results, Results):
+        raise ValueError(f"results must be a Results (from run_question), got {type(results).__name__}")
+
+
 def plot_state_errors(results, axes, n_sigma: float = 2.0, label: str | None = None) -> None:
     """Estimate − truth for x, y, ψ (ψ wrapped) with ±n_σ bounds from the covariance history, on 3 axes."""
+    _check_results(results)
+    _check_axes(axes, 3)
+    if isinstance(n_sigma, bool) or not isinstance(n_sigma, (int, float)) or not n_sigma > 0:
+        raise ValueError(f"n_sigma must be a positive number, got {n_sigma!r}")
     t = results.vehicle_state_time
     err = results.state_error()
     sig = n_sigma * np.sqrt(results.vehicle_covariance_history)
@@ -84,6 +110,8 @@ def plot_state_errors(results, axes, n_sigma: float = 2.0, label: str | None = N
 
 def plot_covariances(results, axes, label: str | None = None) -> None:
     """The marginal variances P_xx, P_yy, P_ψψ against time, on 3 axes."""
+    _check_results(results)
+    _check_axes(axes, 3)
     t = results.vehicle_state_time
     names = ["P_xx (m²)", "P_yy (m²)", "P_ψψ (rad²)"]
     for i, ax in enumerate(axes):

@@ -34,7 +34,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..graph import EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2Prior, SparseOptimizer, wrap_angle
+from ..graph import BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2Prior, SparseOptimizer, wrap_angle
 from .config import SimulatorConfiguration
 from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex
 from .events import Event, EventType
@@ -314,6 +314,8 @@ class DriveBotSLAMSystem:
     def edge_residuals(self, edge_class):
         """(times (E,), errors (E, m)) of every edge of ``edge_class`` in the graph, evaluated in one call of the
         class's vectorised model at the current estimates; times are those of each edge's first vertex."""
+        if not (isinstance(edge_class, type) and issubclass(edge_class, BaseEdge)):
+            raise ValueError(f"edge_class must be an edge class (a BaseEdge subclass), got {edge_class!r}")
         edges = [e for e in self.graph.edges() if type(e) is edge_class]
         m = int(edge_class.measurement_dimension)
         if not edges:
