@@ -209,21 +209,22 @@ class DriveBotSLAMSystem:
 
     def _handle_landmarks(self, event):
         info = self._information(event.covariance)
-        x = self.current_vehicle_vertex.estimate
-        ids = event.landmark_ids
+        vehicle = self.current_vehicle_vertex
+        x = vehicle.estimate
         z = event.data
-        for l in range(ids.size):  # a handful of columns per scan
-            lid = int(ids[l])
+        rows = []
+        for l, lid in enumerate(event.landmark_ids.tolist()):  # a handful of columns per scan
             lm = self.landmark_vertices.get(lid)
-            if lm is None:
+            if lm is None:  # first sighting: inverse observation m = p + z_r [cos(z_β + ψ), sin(z_β + ψ)]
                 ang = z[1, l] + x[2]
                 lm = LandmarkVertex(lid, id=lid, estimate=x[:2] + z[0, l] * np.array([math.cos(ang), math.sin(ang)]))
                 self.graph.add_vertex(lm)
                 self.landmark_vertices[lid] = lm
                 if self.verbose:
                     print(f"Creating landmark {lid}")
-            self.graph.add_edge(EdgeRangeBearing([self.current_vehicle_vertex, lm], measurement=z[:, l],
-                                                 information=info))
+            rows.append((vehicle, lm))
+        # all range-bearing edges of the scan in one call (same result as adding them one by one, in order)
+        self.graph.add_edges(EdgeRangeBearing, rows, z.T, info)
         self._built = False
 
     # ================================================================================= optimisation
