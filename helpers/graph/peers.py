@@ -47,9 +47,14 @@ def warm_up():
             g.compute_marginals()
 
 
-def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2):
-    """Load and solve a dataset with helpers.graph; time the optimise call and all pose marginals."""
-    opt = datasets.load_dataset(name, pose_class=pose_class)
+def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2, data=None):
+    """Load and solve a dataset with helpers.graph; time the optimise call and all pose marginals.
+
+    ``data``: the parsed dataset (``datasets.read_dataset(name)``) when the caller already has it."""
+    if data is None:
+        data = datasets.read_dataset(name)
+    opt = datasets.build_optimizer(data, pose_class=pose_class)
+    opt.initialize_optimization()
     chi2_0 = opt.chi2()
     est0 = {v.id: v.estimate for v in opt.vertices() if isinstance(v, VertexSE2)}
     t = time.perf_counter()
@@ -135,9 +140,13 @@ def gtsam_marginals_at(name, est, points, marginal_every=1):
     return out
 
 
-def run_g2o(name, iters=15):
-    """g2opy Gauss–Newton (BlockSolverSE2 + Eigen), first pose fixed; pose-graph datasets only."""
-    data = datasets.read_dataset(name)
+def run_g2o(name, iters=15, data=None, marginals=True):
+    """g2opy Gauss–Newton (BlockSolverSE2 + Eigen), first pose fixed; pose-graph datasets only.
+
+    ``data``: the parsed dataset (``datasets.read_dataset(name)``) when the caller already has it; ``marginals``
+    False skips the (in g2opy 2.3.0 always failing) marginal computation, to keep a notebook short."""
+    if data is None:
+        data = datasets.read_dataset(name)
     if any(e[0] != "se2" for e in data.edges):
         raise ValueError(f"g2opy has no range-bearing edge; {name} is not a pose graph")
     poses, _ = datasets._initial_values(data)
@@ -145,14 +154,16 @@ def run_g2o(name, iters=15):
     opt.set_algorithm(g2o.OptimizationAlgorithmGaussNewton(g2o.BlockSolverSE2(g2o.LinearSolverEigenSE2())))
     first = min(poses)
     # building 64k edges through the bindings one call at a time takes ~15 s; g2o's own .g2o parser is fast
-    lines = [f"VERTEX_SE2 {pid} {x[0]:.17g} {x[1]:.17g} {x[2]:.17g}" for pid, x in sorted(poses.items())]
-    for kind, i, j, z, info in data.edges:
-        u = info[np.triu_indices(3)]
-        lines.append(f"EDGE_SE2 {i} {j} {z[0]:.17g} {z[1]:.17g} {z[2]:.17g} " + " ".join(f"{v:.17g}" for v in u))
+    ids = np.array(sorted(poses))
+    vert = np.column_stack([ids, np.array([poses[p] for p in ids])])
+    a, b = np.triu_indices(3)
+    edges = np.column_stack([np.array([(e[1], e[2]) for e in data.edges]), np.array([e[3] for e in data.edges]),
+                             np.array([e[4] for e in data.edges])[:, a, b]])
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "graph.g2o")
         with open(path, "w", encoding="utf-8") as fh:
-            fh.write("\n".join(lines) + "\n")
+            np.savetxt(fh, vert, fmt="VERTEX_SE2 %d" + " %.17g" * 3)
+            np.savetxt(fh, edges, fmt="EDGE_SE2 %d %d" + " %.17g" * 9)
         if not opt.load(path):
             raise RuntimeError("g2o could not load the converted graph")
     vs = {p: opt.vertex(int(p)) for p in poses}
@@ -168,17 +179,18 @@ def run_g2o(name, iters=15):
     chi2 = opt.chi2()
     hist = [chi2_0] + [float(s.chi2) for s in opt.batch_statistics()]  # g2o records χ² after each iteration
     free = [vs[p] for p in sorted(poses) if p != first]
-    t = time.perf_counter()
-    cov = {}
-    try:
-        spinv, ok = opt.compute_marginals(free)
-        for p in sorted(poses):
-            if p != first:
-                hi = vs[p].hessian_index()
-                cov[p] = np.array(spinv.block(hi, hi))
-        t_marg = time.perf_counter() - t
-    except TypeError:  # g2opy 2.3.0: "Unable to convert function return value" (SparseBlockMatrix* not bound)
-        t_marg = float("nan")
+    cov, t_marg = {}, float("nan")
+    if marginals:
+        t = time.perf_counter()
+        try:
+            spinv, ok = opt.compute_marginals(free)
+            for p in sorted(poses):
+                if p != first:
+                    hi = vs[p].hessian_index()
+                    cov[p] = np.array(spinv.block(hi, hi))
+            t_marg = time.perf_counter() - t
+        except TypeError:  # g2opy 2.3.0: "Unable to convert function return value" (SparseBlockMatrix* not bound)
+            cov = {}
     est = {p: np.array(vs[p].estimate().vector()) for p in poses}
     return {"solver": "g2o", "config": f"GN x{iters}", "time": t_opt, "iters": iters, "chi2": chi2, "marg_time": t_marg, "cov": cov,
             "est": est, "hist": hist}
