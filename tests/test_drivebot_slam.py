@@ -147,3 +147,12 @@ def test_plotting_and_residuals_bad_input_and_smoke():
     with pytest.raises(ValueError, match="edge_class"):
         res.system.edge_residuals("EdgeHeadingPrior")
     plt.close(fig)
+
+
+def test_step_hook_sees_every_tick():
+    seen = []
+    res = run_question("q1_e", maximum_step_number=12, optimization_period=None,
+                       step_hook=lambda system, k: seen.append((k, len(system.vehicle_vertices))))
+    assert seen == [(k, k + 1) for k in range(12)] and res.n_steps == 12
+    with pytest.raises(ValueError, match="step_hook"):
+        run_question("q1_e", step_hook=5)
