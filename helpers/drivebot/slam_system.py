@@ -323,7 +323,7 @@ class DriveBotSLAMSystem:
             return np.zeros(0), np.zeros((0, m))
         states = [np.array([e.vertex(k).estimate for e in edges]) for k in range(len(edge_class.vertex_types))]
         z = np.array([e.measurement for e in edges])
-        params = {name: np.array([e.parameter(name) for e in edges]) for name in edge_class._param_defaults}
+        params = {name: np.array([e.parameter(name) for e in edges]) for name in (edge_class.parameters or {})}
         err, _ = edge_class.evaluate(states, z, params, jacobians=False)
         return np.array([getattr(e.vertex(0), "time", np.nan) for e in edges]), err
 
