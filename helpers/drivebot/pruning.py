@@ -7,7 +7,8 @@ creates fill-in between the neighbours of the deleted vertex; deleting edges doe
 
 Every heuristic here only removes **landmark range-bearing edges**; the kinematics chain is untouched, so
 with prediction edges kept no vehicle vertex is orphaned. Each landmark always keeps at least one
-observation (its earliest surviving one), so no landmark vertex is deleted by the graph's orphan rule.
+observation (if a rule would drop all of them, its earliest edge is kept), so no landmark vertex is deleted
+by the graph's orphan rule.
 
 Three heuristics, each a callable object usable as the SLAM system's ``pre_optimization_hook(system)``
 (called before every optimisation, so it prunes the edges added since the last call — the rules are
@@ -15,8 +16,8 @@ idempotent on vertices already pruned):
 
 - :class:`KeepKPerVertex` — keep at most ``k`` landmark edges per vehicle vertex, chosen uniformly at random
   from a seeded ``numpy.random.Generator`` (ties broken by a random key; rank within the vertex < k is
-  kept). Motivated by the 30 m laser of q3_a: with ~10 landmarks in view each pose sees far more
-  constraints than the 3 DOF it needs.
+  kept). Motivated by the 30 m laser of q3_a: a pose sees ≈ 3 landmarks on average (6 equations for its
+  3 DOF), and consecutive poses see the same landmarks from almost the same place.
 - :class:`KeyframePruning` — keyframes: a vertex is on a *straight segment* when its smoothed turn rate
   |ψ̇| = |Δψ|/ΔT (moving average over ``window`` ticks of the current heading estimates) is below
   ``rate_threshold``; on straights only every ``stride``-th vertex (a keyframe) keeps its landmark edges,
