@@ -6,8 +6,11 @@ One module per course concept, so a student can guess where a thing lives:
 - ``helpers.gaussian``          the square-root Gaussian (P = SᵀS, S upper-triangular)
 - ``helpers.camera``            the calibrated camera model (12-coefficient OpenCV distortion)
 - ``helpers.state_slam``        the SLAM state and the predicted feature bundle
+- ``helpers.features``          Shi–Tomasi / Harris corner detection
+- ``helpers.scene``             the rendered Lab 8 chessboard scene and pose recovery
 - ``helpers.association``       compatibility tests and data-association algorithms
 - ``helpers.graph``             the g2o-style sparse graph optimiser
+- ``helpers.datasets``          TORO / g2o / Victoria Park readers for the datasets shipped with GTSAM
 - ``helpers.drivebot``          the DriveBot simulator and SLAM system of the coursework
 - ``helpers.figures``           the one plotting style and ``save(fig, name)``
 """
