@@ -136,19 +136,14 @@ class VehicleKinematicsEdge(BaseEdge):
         b.set_estimate(predict(a.estimate, self.measurement, float(self.dt)))
 
 
-class BuggyCompassEdge(BaseEdge):
-    """The coursework's provided (buggy) compass edge: e = ψ + offset − z, NOT wrapped; J = [0, 0, 1]."""
+class BuggyCompassEdge(EdgeHeadingPrior):
+    """The coursework's provided (buggy) compass edge: e = ψ + offset − z, NOT wrapped; J = [0, 0, 1].
 
-    vertex_types = (VertexSE2,)
-    measurement_dimension = 1
-    parameters = {"offset": 0.0}
+    It is the fixed compass edge (``helpers.graph.EdgeHeadingPrior``, e = wrap(ψ + offset − z)) with the wrap
+    left out, so once ψ + offset leaves [−π, π) every residual is off by 2π (spec §9)."""
 
     @staticmethod
     def evaluate(states, z, params, jacobians=True):
-        (x,) = states
-        e = (x[:, 2] + params["offset"] - z[:, 0])[:, None]
-        if not jacobians:
-            return e, None
-        j = np.zeros((len(z), 1, 3))
-        j[:, 0, 2] = 1.0
-        return e, [j]
+        _, jac = EdgeHeadingPrior.evaluate(states, z, params, jacobians)
+        e = (states[0][:, 2] + params["offset"] - z[:, 0])[:, None]
+        return e, jac
