@@ -5,8 +5,8 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 NB_TIMEOUT ?= 600
 
-# Headless and quiet: no GUI backend, Jupyter's new path layout (silences its migration warning).
-export MPLBACKEND := Agg
+# Quiet: Jupyter's new path layout (silences its migration warning). No MPLBACKEND here: kernels use the inline
+# backend (figures are stored in the notebooks and shown in `make lab`); headless scripts fall back to Agg.
 export JUPYTER_PLATFORM_DIRS := 1
 export PYDEVD_DISABLE_FILE_VALIDATION := 1
 
