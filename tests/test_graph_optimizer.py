@@ -39,39 +39,41 @@ def small_slam(seed=0, n_poses=6, n_points=4, fix_first=True, pose_class=VertexS
     return g, poses, lms
 
 
+def whitened_residual(edges):
+    """Stacked whitened residuals Wᵢ eᵢ (WᵢᵀWᵢ = Ωᵢ) of ``edges`` at the vertices' current estimates."""
+    return np.concatenate([np.linalg.cholesky(e.information).T @ e.error() for e in edges])
+
+
+def numeric_jacobian(free, edges, h=1e-7):
+    """Central-difference Jacobian of the whitened residual w.r.t. the free vertices' estimates (dense)."""
+    cols = []
+    for v in free:
+        for a in range(v.dimension):
+            x0 = v.estimate
+            dx = np.zeros(v.dimension)
+            dx[a] = h
+            v.set_estimate(x0 + dx)
+            rp = whitened_residual(edges)
+            v.set_estimate(x0 - dx)
+            rm = whitened_residual(edges)
+            v.set_estimate(x0)
+            cols.append((rp - rm) / (2 * h))
+    return np.stack(cols, axis=1)
+
+
 def dense_gauss_newton(g, iters=30):
     """Reference: dense numerical Jacobian + dense normal equations over the free vertices."""
     free = [v for v in g.vertices() if not v.fixed]
     edges = g.edges()
-
-    def residual():
-        r = []
-        for e in edges:
-            w = np.linalg.cholesky(e.information).T
-            r.append(w @ e.error())
-        return np.concatenate(r)
-
     for _ in range(iters):
-        r0 = residual()
-        cols = []
-        for v in free:
-            for a in range(v.dimension):
-                x0 = v.estimate
-                dx = np.zeros(v.dimension)
-                dx[a] = 1e-7
-                v.set_estimate(x0 + dx)
-                rp = residual()
-                v.set_estimate(x0 - dx)
-                rm = residual()
-                v.set_estimate(x0)
-                cols.append((rp - rm) / 2e-7)
-        J = np.stack(cols, axis=1)
+        r0 = whitened_residual(edges)
+        J = numeric_jacobian(free, edges)
         step = np.linalg.solve(J.T @ J, J.T @ r0)
         k = 0
         for v in free:
             v.oplus(-step[k:k + v.dimension])
             k += v.dimension
-    r = residual()
+    r = whitened_residual(edges)
     return float(r @ r), np.linalg.inv(J.T @ J)
 
 
@@ -115,24 +117,8 @@ def test_hessian_and_gradient_match_dense_jacobian():
     g.initialize_optimization()
     free = [v for v in g.vertices() if not v.fixed]
     edges = g.edges()
-
-    def residual():
-        return np.concatenate([np.linalg.cholesky(e.information).T @ e.error() for e in edges])
-
-    r0 = residual()
-    cols = []
-    for v in free:
-        for a in range(v.dimension):
-            x0 = v.estimate
-            dx = np.zeros(v.dimension)
-            dx[a] = 1e-7
-            v.set_estimate(x0 + dx)
-            rp = residual()
-            v.set_estimate(x0 - dx)
-            rm = residual()
-            v.set_estimate(x0)
-            cols.append((rp - rm) / 2e-7)
-    J = np.stack(cols, axis=1)
+    r0 = whitened_residual(edges)
+    J = numeric_jacobian(free, edges)
     np.testing.assert_allclose(g.hessian().toarray(), J.T @ J, rtol=1e-5, atol=1e-4)
     np.testing.assert_allclose(g.gradient(), J.T @ r0, rtol=1e-5, atol=1e-5)
     assert g.chi2() == pytest.approx(float(r0 @ r0), rel=1e-12)

@@ -88,6 +88,17 @@ class Scenario:
         return labels
 
 
+
+def _generator(seed, rng):
+    """The scenario's random generator: ``rng`` if given, else one seeded with ``seed`` (one of them is required)."""
+    if rng is None:
+        if seed is None:
+            raise ValueError("give seed or rng: every scenario must be reproducible")
+        return np.random.default_rng(seed)
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    return rng
+
 def _rot(theta):
     c, s = np.cos(theta), np.sin(theta)
     return np.array([[c, -s], [s, c]])
@@ -136,12 +147,7 @@ def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size:
     every landmark). Clutter is uniform in the sensed disc (radius = range of the farthest visible
     landmark, or max_range).
     """
-    if rng is None:
-        if seed is None:
-            raise ValueError("give seed or rng: every scenario must be reproducible")
-        rng = np.random.default_rng(seed)
-    elif not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    rng = _generator(seed, rng)
     for name, value, lo in (("n_landmarks", n_landmarks, 1), ("n_clutter", n_clutter, 0)):
         if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < lo:
             raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
@@ -246,12 +252,7 @@ def lab_camera_scenario(seed=None, rng=None, *, n_clutter: int = 1000, p_detect:
     nine landmarks at the mean state with the pixel noise added. Pose fields hold the 6-D camera/body pose
     [r; Θ]; landmark fields hold the 3-D positions.
     """
-    if rng is None:
-        if seed is None:
-            raise ValueError("give seed or rng: every scenario must be reproducible")
-        rng = np.random.default_rng(seed)
-    elif not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    rng = _generator(seed, rng)
     if isinstance(n_clutter, bool) or not isinstance(n_clutter, numbers.Integral) or n_clutter < 0:
         raise ValueError(f"n_clutter must be an integer >= 0, got {n_clutter!r}")
     if isinstance(p_detect, bool) or not isinstance(p_detect, numbers.Real) or not 0.0 <= p_detect <= 1.0:
