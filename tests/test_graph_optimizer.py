@@ -407,3 +407,30 @@ def test_ldl_solver_and_sparse_inverse_against_dense():
     assert not fresh.ok
     assert fresh.factor(pattern, data).ok
     np.testing.assert_allclose(fresh.solve(b), np.linalg.solve(H, b), rtol=1e-10, atol=1e-12)
+
+
+def test_ldl_solver_damped_psd_matrix_skips_the_pivot_check_but_stays_exact():
+    """H = JᵀJ of a rank-deficient J is only semi-definite: undamped it is reported singular; H + μI with a
+    declared damping μ is positive definite by construction and solves exactly; a negligible μ is still checked."""
+    from helpers.graph.linear import HessianPattern, LDLSolver
+    rng = np.random.default_rng(5)
+    n = 12
+    J = rng.normal(size=(8, n))  # rank 8 < 12
+    Hd = J.T @ J
+    r, c = np.triu_indices(n)
+    pattern = HessianPattern(n, r, c, np.ones(len(r), dtype=bool))
+    data = pattern.assemble(Hd[r, c])  # H's upper triangle scattered onto the pattern
+    np.testing.assert_allclose(pattern.full_matrix(data).toarray(), Hd, atol=1e-12)
+    b = rng.normal(size=n)
+    solver = LDLSolver()
+    assert not solver.factor(pattern, data).ok  # singular: the pivot check catches it
+    for mu in (1e-3, 1.0):
+        damped = data.copy()
+        damped[pattern.diag_pos] += mu
+        solver.factor(pattern, damped, damping=mu)
+        assert solver.ok
+        np.testing.assert_allclose(solver.solve(b), np.linalg.solve(Hd + mu * np.eye(n), b), rtol=1e-8)
+    tiny = data.copy()
+    tiny[pattern.diag_pos] += 1e-300
+    solver.factor(pattern, tiny, damping=1e-300)  # below round-off: checked, not assumed
+    assert solver.ok == bool(np.all(solver.qdldl.factors()[1] > 0))

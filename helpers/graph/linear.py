@@ -169,14 +169,22 @@ class LDLSolver:
         self.qdldl = qdldl.Solver(pattern.upper(pattern.surrogate()), upper=True) if pattern.n else None
         return self
 
-    def factor(self, pattern, data):
+    def factor(self, pattern, data, damping=0.0):
         """Factorise the matrix with upper-triangle CSC ``data`` on ``pattern``; ``ok`` says whether it is
-        positive definite (every pivot d_i > 0)."""
+        positive definite (every pivot d_i > 0).
+
+        ``damping`` = μ declares the matrix to be H + μI with H = Σ JᵀΩJ positive semi-definite. When μ is
+        well above round-off (μ > 1e−9·max diag) the matrix is positive definite by construction (its smallest
+        eigenvalue is ≥ μ), so the pivot check — which copies the whole factor out of qdldl — is skipped; a
+        numerical breakdown would still show up as a non-finite solution, which the callers test."""
         if self.pattern is not pattern:
             self.analyse(pattern)
         self.qdldl.update(pattern.upper(data), upper=True)
-        d = self.qdldl.factors()[1]
-        self.ok = bool(np.all(d > 0.0) and np.all(np.isfinite(d)))
+        if damping > 1e-9 * float(np.max(np.abs(data[pattern.diag_pos]))):
+            self.ok = True
+        else:
+            d = self.qdldl.factors()[1]
+            self.ok = bool(np.all(d > 0.0) and np.all(np.isfinite(d)))
         return self
 
     def solve(self, rhs):

@@ -699,7 +699,7 @@ class SparseOptimizer:
             while True:
                 damped = data.copy()
                 damped[pattern.diag_pos] += mu
-                dx = self._solver.factor(pattern, damped).solve(b)
+                dx = self._solver.factor(pattern, damped, damping=mu).solve(b)
                 if not np.all(np.isfinite(dx)):
                     stop = True
                     break
@@ -752,7 +752,7 @@ class SparseOptimizer:
             while lam < lam_max:
                 damped = data.copy()
                 damped[pattern.diag_pos] += lam
-                dx = self._solver.factor(pattern, damped).solve(b)
+                dx = self._solver.factor(pattern, damped, damping=lam).solve(b)
                 if np.all(np.isfinite(dx)):
                     # linearised decrease 2bᵀdx − dxᵀH dx, with (H + λI) dx = b:  = bᵀdx + λ‖dx‖²
                     lin = _dot(b, dx) + lam * _dot(dx, dx)
