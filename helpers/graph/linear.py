@@ -32,7 +32,7 @@ from numba import njit
 import qdldl
 
 __all__ = ["HessianPattern", "LDLSolver", "sparse_inverse_on_pattern", "batched_jtj", "batched_jte",
-           "batched_wj", "batched_matmul"]
+           "batched_matmul"]
 
 
 @njit(cache=True)
@@ -72,7 +72,7 @@ def batched_jte(a, v):
 
 @njit(cache=True)
 def batched_matmul(a, b):
-    """(E, p, q), (E, q, r) → A B per edge."""
+    """(E, p, q), (E, q, r) → A B per edge (also W J: whitening of the Jacobians)."""
     E, p, q = a.shape
     r = b.shape[2]
     out = np.empty((E, p, r))
@@ -83,21 +83,6 @@ def batched_matmul(a, b):
                 for k in range(q):
                     acc += a[e, i, k] * b[e, k, c]
                 out[e, i, c] = acc
-    return out
-
-
-@njit(cache=True)
-def batched_wj(w, j):
-    """(E, m, m), (E, m, p) → W J per edge."""
-    E, m, p = j.shape
-    out = np.empty((E, m, p))
-    for e in range(E):
-        for r in range(m):
-            for c in range(p):
-                acc = 0.0
-                for k in range(m):
-                    acc += w[e, r, k] * j[e, k, c]
-                out[e, r, c] = acc
     return out
 
 

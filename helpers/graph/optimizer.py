@@ -36,7 +36,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .edge import BaseEdge, check_information_batch
 from .errors import GaugeFreedomError, GraphError
-from .linear import (HessianPattern, LDLSolver, batched_jte, batched_jtj, batched_matmul, batched_wj,
+from .linear import (HessianPattern, LDLSolver, batched_jte, batched_jtj, batched_matmul,
                      sparse_inverse_on_pattern)
 from .vertex import BaseVertex
 
@@ -572,7 +572,7 @@ class SparseOptimizer:
                 jw = None if jac is None else [blk.w[:, :, None] * j for j in jac]
             else:
                 ew = batched_jte(blk.wt, np.ascontiguousarray(e))
-                jw = None if jac is None else [batched_wj(blk.w, np.ascontiguousarray(j)) for j in jac]
+                jw = None if jac is None else [batched_matmul(blk.w, np.ascontiguousarray(j)) for j in jac]
             out.append((blk, ew, jw))
         return out
 
