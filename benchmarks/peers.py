@@ -4,7 +4,7 @@
 
 Prints, per dataset and solver: wall time of the optimisation call, iterations, final χ² (GTSAM: 2 × error), the
 time for all pose covariances and their agreement with GTSAM (max relative Frobenius difference), and the ratios
-helpers / faster peer. Solvers and caveats: see helpers/graph/peers.py. helpers runs GTSAM's own strategy on both
+helpers / faster peer. Solvers and caveats: see benchmarks/peer_runs.py. helpers runs GTSAM's own strategy on both
 datasets, so the comparison is like for like: algorithm="lm-gtsam" (GTSAM's default LM schedule and stopping rule)
 with VertexSE2Exp (GTSAM's Pose2 exponential-map update). The coursework's GN reaches the same W10000 optimum in
 11 iterations instead of 8 (notebook 09 shows it); on Victoria Park the coursework's GN/LM end in a worse local
@@ -16,7 +16,7 @@ import argparse
 import numpy as np
 
 from helpers.graph import VertexSE2Exp
-from helpers.graph.peers import agreement, gtsam_marginals_at, run_g2o, run_gtsam, run_helpers, warm_up
+from peer_runs import agreement, gtsam_marginals_at, run_g2o, run_gtsam, run_helpers, warm_up
 
 
 def main():

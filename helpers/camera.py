@@ -38,6 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .paths import data_dir
 from .rotation import rot2rpy, rpy2rot, rpy2rot_derivatives
 
 __all__ = [
@@ -55,11 +56,6 @@ CALIB_RATIONAL_MODEL = 16384
 CALIB_THIN_PRISM_MODEL = 32768
 CALIB_TILTED_MODEL = 262144
 _REQUIRED_FLAGS = CALIB_RATIONAL_MODEL | CALIB_THIN_PRISM_MODEL
-
-
-def data_dir() -> Path:
-    """The workbook's ``data/`` directory (located through the installed package)."""
-    return Path(__file__).resolve().parents[1] / "data"
 
 
 def load_lab_camera() -> "Camera":

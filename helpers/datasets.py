@@ -1,4 +1,7 @@
-"""Readers for the standard 2D pose-graph / SLAM datasets shipped in the gtsam wheel, and ``load_dataset``.
+"""Readers for the standard 2D pose-graph / SLAM datasets, and ``load_dataset`` for the copies in ``data/datasets``.
+
+The four datasets the workbook uses (W100, W10000, Victoria Park, GTSAM's example.graph) ship gzipped in
+``data/datasets/`` (origin and licence in ``data/README.md``); every reader also takes plain or ``.gz`` files.
 
 Formats (strict: any malformed line raises ValueError naming the file and the 1-based line number):
 
@@ -21,18 +24,20 @@ Conventions follow ``gtsam.load2D`` so that χ² values compare one to one (χ²
 - the lowest-id pose is fixed (GTSAM puts a prior on it instead).
 """
 
+import gzip
 import pathlib
 
 import numpy as np
 
 from .graph import (EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2, wrap_angle)
 from .graph.edge import BaseEdge
+from .paths import data_path
 
 __all__ = ["GraphData", "read_toro", "read_g2o", "read_victoria_park", "dataset_path", "load_dataset",
            "build_optimizer", "EdgeSE2PointXY", "pose_arrays", "DATASETS"]
 
-DATASETS = {"w100": "w100.graph", "w10000": "w10000.graph", "victoria_park": "victoria_park.txt",
-            "example": "example.graph"}
+DATASETS = {"w100": "w100.graph.gz", "w10000": "w10000.graph.gz", "victoria_park": "victoria_park.txt.gz",
+            "example": "example.graph.gz"}
 
 
 class EdgeSE2PointXY(BaseEdge):
@@ -97,7 +102,8 @@ def _scan(path, counts):
     if not path.is_file():
         raise ValueError(f"dataset file not found: {path}")
     recs = {tag: ([], []) for tag in counts}
-    with open(path, encoding="utf-8") as fh:
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt", encoding="utf-8") as fh:
         for lineno, line in enumerate(fh, start=1):
             fields = line.split()
             if not fields or fields[0].startswith("#"):
@@ -316,12 +322,10 @@ def build_optimizer(data, fix_first=True, pose_class=VertexSE2):
 
 
 def dataset_path(name):
-    """Full path of a dataset shipped in the gtsam wheel (via gtsam.findExampleDataFile)."""
+    """Full path of a dataset shipped with the workbook (``data/datasets/<file>.gz``)."""
     if name not in DATASETS:
         raise ValueError(f"unknown dataset {name!r}; expected one of {sorted(DATASETS)}")
-    import gtsam
-
-    return gtsam.findExampleDataFile(DATASETS[name])
+    return data_path("datasets", DATASETS[name])
 
 
 def read_dataset(name):

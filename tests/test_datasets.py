@@ -1,16 +1,49 @@
-"""Dataset readers: strict parsing, GTSAM-equivalent initial values and χ², load_dataset."""
+"""Dataset readers: strict parsing, GTSAM-equivalent initial values and χ², load_dataset, the shipped copies."""
+
+import gzip
+import hashlib
 
 import numpy as np
 import pytest
 
 from helpers import datasets
 from helpers.graph import EdgeRangeBearing, EdgeSE2, VertexPointXY, VertexSE2
+from helpers.paths import data_path
 
-gtsam = pytest.importorskip("gtsam", reason="the datasets ship inside the gtsam wheel")
+
+@pytest.fixture(scope="module")
+def gtsam():
+    return pytest.importorskip("gtsam", reason="GTSAM (an optional peer, environment-peers.txt) is the oracle")
 
 
-def _gtsam_optimum(name):
-    graph, initial = gtsam.load2D(datasets.dataset_path(name))
+def _plain_copy(name, tmp_path):
+    """The shipped dataset decompressed to a file (GTSAM's load2D reads plain text only)."""
+    path = tmp_path / datasets.DATASETS[name].removesuffix(".gz")
+    path.write_bytes(gzip.decompress(datasets.dataset_path(name).read_bytes()))
+    return str(path)
+
+
+def _sha256sums():
+    rows = (line.split() for line in data_path("datasets", "SHA256SUMS").read_text().splitlines() if line.strip())
+    return {name: digest for digest, name in rows}
+
+
+@pytest.mark.parametrize("name", sorted(datasets.DATASETS))
+def test_shipped_dataset_checksum(name):
+    plain = datasets.DATASETS[name].removesuffix(".gz")
+    digest = hashlib.sha256(gzip.decompress(datasets.dataset_path(name).read_bytes())).hexdigest()
+    assert digest == _sha256sums()[plain]
+
+
+@pytest.mark.parametrize("name", sorted(datasets.DATASETS))
+def test_shipped_dataset_equals_gtsam_wheel_copy(gtsam, name):
+    plain = datasets.DATASETS[name].removesuffix(".gz")
+    with open(gtsam.findExampleDataFile(plain), "rb") as fh:
+        assert hashlib.sha256(fh.read()).hexdigest() == _sha256sums()[plain]
+
+
+def _gtsam_optimum(gtsam, name, tmp_path):
+    graph, initial = gtsam.load2D(_plain_copy(name, tmp_path))
     graph.add(gtsam.PriorFactorPose2(0, initial.atPose2(0), gtsam.noiseModel.Isotropic.Sigma(3, 1e-8)))
     params = gtsam.LevenbergMarquardtParams()
     params.setRelativeErrorTol(1e-12)
@@ -20,27 +53,27 @@ def _gtsam_optimum(name):
 
 
 @pytest.mark.parametrize("name", ["w100", "example"])
-def test_chi2_equals_gtsam(name):
-    graph, initial, result = _gtsam_optimum(name)
+def test_chi2_equals_gtsam(gtsam, name, tmp_path):
+    graph, initial, result = _gtsam_optimum(gtsam, name, tmp_path)
     opt = datasets.load_dataset(name)
     assert opt.chi2() == pytest.approx(2 * graph.error(initial), rel=1e-10)
     chi2 = opt.optimize(100)
     assert chi2 == pytest.approx(2 * graph.error(result), rel=1e-6)
 
 
-def test_example_contents():
+def test_example_contents(gtsam, tmp_path):
     opt = datasets.load_dataset("example")
     pid, poses, lid, pts = datasets.pose_arrays(opt)
     assert len(pid) == 95 and len(lid) == 24
     assert sum(isinstance(e, EdgeRangeBearing) for e in opt.edges()) == 422
     assert sum(isinstance(e, EdgeSE2) for e in opt.edges()) == 94
     assert opt.vertex(0, VertexSE2).fixed and not opt.vertex(1, VertexSE2).fixed
-    g, vals = gtsam.load2D(datasets.dataset_path("example"))
+    g, vals = gtsam.load2D(_plain_copy("example", tmp_path))
     lm = vals.atPoint2(gtsam.symbol("l", 144))
     np.testing.assert_allclose(opt.vertex(144, VertexPointXY).estimate, lm, atol=1e-9)
 
 
-def test_victoria_park_reader_matches_load2d():
+def test_victoria_park_reader_matches_load2d(gtsam, tmp_path):
     data = datasets.read_victoria_park(datasets.dataset_path("victoria_park"))
     kinds = [e[0] for e in data.edges]
     assert kinds.count("se2") == 6968 and kinds.count("rb") == 3640
@@ -49,7 +82,7 @@ def test_victoria_park_reader_matches_load2d():
     np.testing.assert_allclose(rb[3], [np.hypot(11.5387, -3.2007), np.arctan2(-3.2007, 11.5387)])
     np.testing.assert_allclose(np.diag(rb[4]), [1 / 0.4, 10 / 0.4])
     opt = datasets.build_optimizer(data)
-    graph, initial = gtsam.load2D(datasets.dataset_path("victoria_park"))
+    graph, initial = gtsam.load2D(_plain_copy("victoria_park", tmp_path))
     assert opt.chi2() == pytest.approx(2 * graph.error(initial), rel=1e-10)
     np.testing.assert_allclose(opt.vertex(6968, VertexSE2).estimate[:2],
                                [initial.atPose2(6968).x(), initial.atPose2(6968).y()], atol=1e-6)

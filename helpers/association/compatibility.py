@@ -22,7 +22,7 @@ import numbers
 
 import numpy as np
 
-from ..camera import data_dir
+from ..paths import data_dir
 from ..gaussian import Gaussian, chi2inv, confidence_level
 
 __all__ = [

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..paths import data_path
+
 __all__ = ["Scenario", "SCENARIO_NAMES", "load_scenario", "data_dir", "write_scenario_files",
            "generate_large_map", "LARGE_MAP_SEED"]
 
@@ -72,7 +74,7 @@ class Scenario:
 
 def data_dir() -> pathlib.Path:
     """``<repository>/data/drivebot``."""
-    return pathlib.Path(__file__).resolve().parents[2] / "data" / "drivebot"
+    return data_path("drivebot")
 
 
 def load_scenario(name: str) -> Scenario:

@@ -1,4 +1,4 @@
-"""Peer runs for the benchmark and notebook 09: helpers.graph, GTSAM and g2o (g2opy) on the same dataset.
+"""Peer runs for the benchmarks and the recorded peer results: helpers.graph, GTSAM and g2o (g2opy) on one dataset.
 
 Each ``run_*`` returns a dict: solver, time (wall time of the optimisation call only; loading is not timed),
 iters, chi2 (GTSAM: 2 × error), hist (χ² per iteration, starting with the initial value), marg_time (all pose
@@ -11,6 +11,7 @@ g2opy 2.3.0: no range-bearing edge (pose graphs only); ``compute_marginals`` can
 rather than GTSAM's Log(d), so its χ² is a slightly different cost (≈ 289.726 vs 289.735 on W10000).
 """
 
+import gzip
 import os
 import tempfile
 import time
@@ -20,10 +21,17 @@ import numpy as np
 import gtsam
 from g2opy import g2opy as g2o
 
-from .. import datasets
-from .edges2d import EdgeRangeBearing, EdgeSE2
-from .optimizer import SparseOptimizer
-from .vertex import VertexPointXY, VertexSE2, VertexSE2Exp
+from helpers import datasets
+from helpers.graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2, VertexSE2Exp
+
+
+def load2d(name):
+    """GTSAM's ``load2D`` on the workbook's shipped copy of a dataset (decompressed to a temporary file)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, datasets.DATASETS[name].removesuffix(".gz"))
+        with gzip.open(datasets.dataset_path(name), "rb") as src, open(path, "wb") as dst:
+            dst.write(src.read())
+        return gtsam.load2D(path)
 
 
 def warm_up():
@@ -78,7 +86,7 @@ def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2, data=None
 def run_gtsam(name, marginal_every=1):
     """GTSAM LevenbergMarquardtOptimizer (default parameters, 1e−6 prior on pose 0) and Marginals for all poses
     (or every ``marginal_every``-th pose; 0 skips them, to keep a notebook short)."""
-    graph, initial = gtsam.load2D(datasets.dataset_path(name))
+    graph, initial = load2d(name)
     graph.add(gtsam.PriorFactorPose2(0, initial.atPose2(0), gtsam.noiseModel.Isotropic.Sigma(3, 1e-6)))
     params = gtsam.LevenbergMarquardtParams()
     t = time.perf_counter()
@@ -121,7 +129,7 @@ def run_gtsam(name, marginal_every=1):
 def gtsam_marginals_at(name, est, points, marginal_every=1):
     """GTSAM's pose covariances (world-frame (x, y, ψ)) evaluated at a given solution — the oracle for checking
     helpers' marginals at the same state."""
-    graph, _ = gtsam.load2D(datasets.dataset_path(name))
+    graph, _ = load2d(name)
     first = min(est)
     graph.add(gtsam.PriorFactorPose2(first, gtsam.Pose2(*est[first]), gtsam.noiseModel.Isotropic.Sigma(3, 1e-9)))
     values = gtsam.Values()

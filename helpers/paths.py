@@ -1,0 +1,19 @@
+"""Where the workbook's files live: the one helper every module uses to find ``data/`` (and the repository)."""
+import pathlib
+
+__all__ = ["repository_root", "data_dir", "data_path"]
+
+
+def repository_root() -> pathlib.Path:
+    """The workbook's top-level folder (``helpers`` is installed in editable mode from it)."""
+    return pathlib.Path(__file__).resolve().parents[1]
+
+
+def data_dir() -> pathlib.Path:
+    """The workbook's ``data/`` folder."""
+    return repository_root() / "data"
+
+
+def data_path(*parts: str) -> pathlib.Path:
+    """A path under ``data/``, e.g. ``data_path("datasets", "w10000.graph.gz")``."""
+    return data_dir().joinpath(*parts)

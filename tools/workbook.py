@@ -1,0 +1,233 @@
+"""The workbook's tasks on every platform: the Makefile delegates here, and Windows runs this script directly.
+
+    python3 tools/workbook.py figures      # = make figures   (Windows: py -3.11 tools\\workbook.py figures)
+    python3 tools/workbook.py test         # = make test
+    python3 tools/workbook.py lab          # = make lab
+    python3 tools/workbook.py setup | test-unit | test-notebooks | notebooks | execute NB... | bench
+    python3 tools/workbook.py clean | distclean
+
+The interpreter that runs this script is checked first (CPython 3.11.5 to 3.13) and is the one the virtual
+environment ``.venv`` is made from. ``.venv`` is (re)created when it is missing, when it was made by another
+interpreter, or when its last install did not finish; it is reinstalled in place when ``environment.txt``,
+``environment-peers.txt`` or ``pyproject.toml`` changed. The optional peers (GTSAM, g2o) are installed from
+wheels where wheels exist; the workbook does not need them.
+
+With ``CI=true`` the ``test`` task runs the strict notebook pass twice more, with numpy's CPU dispatch lowered
+(AVX-512 off, then AVX-512 and AVX2 off) and one BLAS thread, to prove the stored outputs do not depend on them.
+This file keeps to syntax that old Pythons can parse, so that they reach the version check.
+"""
+import hashlib
+import json
+import os
+import pathlib
+import platform
+import shutil
+import subprocess
+import sys
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+VENV = ROOT / ".venv"
+STATE = VENV / "workbook-install.json"
+LOCK_FILES = ("environment.txt", "environment-peers.txt", "pyproject.toml")
+SUPPORTED = ((3, 11, 5), (3, 14, 0))  # lower bound inclusive, upper bound exclusive
+SUPPORTED_TEXT = "CPython 3.11.5 to 3.13"
+NB_TIMEOUT = int(os.environ.get("NB_TIMEOUT", "600"))
+# numpy's dispatch groups to switch off for the CI passes (x86-64 only; numpy 2.4's names).
+CPU_PASSES = (("AVX-512 off", "X86_V4 AVX512_ICL AVX512_SPR"),
+              ("AVX-512 and AVX2 off", "X86_V3 X86_V4 AVX512_ICL AVX512_SPR"))
+
+
+class TaskError(Exception):
+    """A task failed; the message is the one line printed."""
+
+
+def check_interpreter():
+    version = sys.version_info[:3]
+    name = platform.python_implementation()
+    if name != "CPython" or not SUPPORTED[0] <= version < SUPPORTED[1]:
+        found = "%s %s (%s)" % (name, platform.python_version(), sys.executable)
+        raise TaskError("this workbook needs %s; found %s. Run with a supported Python, e.g. "
+                        "`make test PYTHON=python3.12` or `py -3.12 tools\\workbook.py test`." % (SUPPORTED_TEXT, found))
+
+
+def venv_python():
+    if os.name == "nt":
+        return VENV / "Scripts" / "python.exe"
+    return VENV / "bin" / "python"
+
+
+def interpreter_identity():
+    return {"executable": os.path.realpath(sys.executable), "version": platform.python_version()}
+
+
+def lock_digest():
+    h = hashlib.sha256()
+    for name in LOCK_FILES:
+        h.update(name.encode())
+        h.update((ROOT / name).read_bytes())
+    return h.hexdigest()
+
+
+def read_state():
+    try:
+        return json.loads(STATE.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def run(cmd, env=None, check=True):
+    """Run a command from the repository root; a failure raises TaskError naming it."""
+    print("+ " + " ".join(str(c) for c in cmd), flush=True)
+    code = subprocess.call([str(c) for c in cmd], cwd=str(ROOT), env=env)
+    if check and code != 0:
+        raise TaskError("command failed with exit status %d: %s" % (code, " ".join(str(c) for c in cmd)))
+    return code
+
+
+def pip_args():
+    # Progress bars in a terminal; quiet, bar-free logs otherwise (CI, IDE runners).
+    return [] if sys.stdout.isatty() else ["--quiet", "--progress-bar", "off"]
+
+
+def setup():
+    """Create or refresh .venv so that it holds exactly the lock; never leave a half-installed one behind."""
+    check_interpreter()
+    state = read_state()
+    identity = interpreter_identity()
+    if VENV.exists() and (state is None or state.get("interpreter") != identity):
+        why = "its last install did not finish" if state is None else "it was made by another interpreter"
+        print("recreating .venv: %s" % why, flush=True)
+        shutil.rmtree(VENV)
+    digest = lock_digest()
+    if state is not None and state.get("interpreter") == identity and state.get("lock") == digest \
+            and venv_python().exists():
+        return
+    if not VENV.exists():
+        run([sys.executable, "-m", "venv", VENV])
+    if STATE.exists():
+        STATE.unlink()  # from here until the install succeeds, .venv counts as unfinished
+    py = venv_python()
+    run([py, "-m", "pip", "install"] + pip_args() + ["-r", "environment.txt"])
+    peers = install_peers(py)
+    STATE.write_text(json.dumps({"interpreter": identity, "lock": digest, "peers": peers}, indent=1),
+                     encoding="utf-8")
+    print("environment ready: %s (Python %s)%s" % (VENV.name, identity["version"],
+                                                  "" if peers else "; optional peers not installed"), flush=True)
+
+
+def install_peers(py):
+    """Install the optional peers from wheels; a platform without wheels is reported, not an error."""
+    code = run([py, "-m", "pip", "install", "--only-binary=:all:", "--no-deps"] + pip_args()
+               + ["-r", "environment-peers.txt"], check=False)
+    if code != 0:
+        print("note: the optional peers (environment-peers.txt) have no wheels here; the workbook runs without "
+              "them and shows their recorded results", flush=True)
+    return code == 0
+
+
+def tool_env(extra=None):
+    env = dict(os.environ)
+    env["JUPYTER_PLATFORM_DIRS"] = "1"  # Jupyter's new path layout (silences its migration warning)
+    env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"
+    env.update(extra or {})
+    return env
+
+
+def nbval(env=None):
+    run([venv_python(), "-m", "pytest", "-W", "error", "-q", "--nbval", "--nbval-current-env",
+         "--nbval-sanitize-with", "notebooks/nbval_sanitize.cfg", "--nbval-cell-timeout", "300",
+         "-p", "no:cacheprovider", "notebooks"], env=tool_env(env))
+
+
+def cpu_passes():
+    """The lowered-dispatch environments for this CPU (x86-64 only)."""
+    machine = platform.machine().lower()
+    if machine not in ("x86_64", "amd64"):
+        print("lowered-CPU nbval passes: only defined for x86-64, skipped on %s" % machine, flush=True)
+        return []
+    return [(label, {"NPY_DISABLE_CPU_FEATURES": features, "OPENBLAS_NUM_THREADS": "1"})
+            for label, features in CPU_PASSES]
+
+
+def test_unit():
+    setup()
+    run([venv_python(), "-m", "pytest", "-W", "error", "-q", "tests"], env=tool_env())
+
+
+def test_notebooks():
+    setup()
+    nbval()
+    if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
+        for label, env in cpu_passes():
+            print("strict nbval again with %s and one BLAS thread (NPY_DISABLE_CPU_FEATURES=%r)"
+                  % (label, env["NPY_DISABLE_CPU_FEATURES"]), flush=True)
+            nbval(env)
+
+
+def figures():
+    setup()
+    run([venv_python(), "tools/execute_notebooks.py", "--output-dir", "build/notebooks",
+         "--timeout", str(NB_TIMEOUT)], env=tool_env())
+    n = len(list((ROOT / "figures").glob("*.png")))
+    print("report figures in figures/: %d PNG, %d PDF" % (n, len(list((ROOT / "figures").glob("*.pdf")))))
+
+
+def execute(notebooks):
+    setup()
+    run([venv_python(), "tools/execute_notebooks.py", "--inplace", "--timeout", str(NB_TIMEOUT)]
+        + list(notebooks), env=tool_env())
+
+
+def lab():
+    setup()
+    run([venv_python(), "-m", "jupyterlab", "--notebook-dir=notebooks"], env=tool_env())
+
+
+def bench():
+    setup()
+    for script in sorted((ROOT / "benchmarks").glob("*.py")):
+        run([venv_python(), script.relative_to(ROOT)], env=tool_env())
+
+
+def clean(everything=False):
+    for name in ["build", "figures", ".pytest_cache"] + ([".venv"] if everything else []):
+        shutil.rmtree(str(ROOT / name), ignore_errors=True)
+        print("removed %s/" % name)
+
+
+TASKS = {
+    "setup": lambda args: setup(),
+    "figures": lambda args: figures(),
+    "test": lambda args: (test_unit(), test_notebooks()),
+    "test-unit": lambda args: test_unit(),
+    "test-notebooks": lambda args: test_notebooks(),
+    "notebooks": lambda args: execute([]),
+    "execute": lambda args: execute(args),
+    "lab": lambda args: lab(),
+    "bench": lambda args: bench(),
+    "clean": lambda args: clean(),
+    "distclean": lambda args: clean(everything=True),
+    "check-python": lambda args: (check_interpreter(), print("%s %s: supported" % (
+        platform.python_implementation(), platform.python_version()))),
+}
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    if not argv or argv[0] not in TASKS:
+        print(__doc__)
+        print("tasks: " + ", ".join(TASKS))
+        return 2
+    try:
+        TASKS[argv[0]](argv[1:])
+    except TaskError as err:
+        print("error: %s" % err, file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
