@@ -18,10 +18,17 @@ import time
 
 import numpy as np
 
-import gtsam
-from g2opy import g2opy as g2o
+try:  # each peer is optional (GTSAM has no Windows wheel): a run needs only its own library
+    import gtsam
+except ImportError:
+    gtsam = None
+try:
+    from g2opy import g2opy as g2o
+except ImportError:
+    g2o = None
 
 from helpers import datasets
+from helpers.recorded_peers import covariance_agreement
 from helpers.graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2, VertexSE2Exp
 
 
@@ -205,15 +212,5 @@ def run_g2o(name, iters=15, data=None, marginals=True):
 
 
 def agreement(a, b):
-    """max over shared poses of ‖Σ_a − Σ_b‖_F / ‖Σ_b‖_F (poses with a zero/fixed block skipped)."""
-    if not a:
-        return float("nan")
-    worst = 0.0
-    for k, cb in b.items():
-        ca = a.get(k)
-        if ca is None or not np.any(ca) or np.linalg.norm(cb) < 1e-9:
-            continue
-        worst = max(worst, float(np.linalg.norm(ca - cb) / np.linalg.norm(cb)))
-    return worst
-
-
+    """Covariance agreement (helpers.recorded_peers.covariance_agreement); NaN when ``a`` has no covariances."""
+    return float("nan") if not a else covariance_agreement(a, b)

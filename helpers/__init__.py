@@ -10,9 +10,11 @@ One module per course concept, so a student can guess where a thing lives:
 - ``helpers.scene``             the rendered Lab 8 chessboard scene and pose recovery
 - ``helpers.association``       compatibility tests and data-association algorithms
 - ``helpers.graph``             the g2o-style sparse graph optimiser
-- ``helpers.datasets``          TORO / g2o / Victoria Park readers for the datasets shipped with GTSAM
+- ``helpers.datasets``          TORO / g2o / Victoria Park readers; the datasets shipped in ``data/datasets``
+- ``helpers.recorded_peers``    GTSAM / g2o results recorded by ``benchmarks/record_peers.py``
 - ``helpers.drivebot``          the DriveBot simulator and SLAM system of the coursework
 - ``helpers.figures``           the one plotting style and ``save(fig, name)``
+- ``helpers.paths``             where ``data/`` is
 """
 
 __all__ = []
