@@ -32,8 +32,9 @@ def main(argv: list[str] | None = None) -> int:
     if not paths:
         print("no notebooks found", file=sys.stderr)
         return 1
-    for path in paths:
+    for k, path in enumerate(paths, start=1):
         path = path.resolve()
+        print(f"[{k}/{len(paths)}] {path.relative_to(ROOT)} ...", end=" ", flush=True)
         start = time.perf_counter()
         nb = nbformat.read(path, as_version=4)
         client = NotebookClient(nb, timeout=args.timeout, kernel_name="python3",
@@ -42,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
         target = path if args.inplace else (ROOT / args.output_dir / path.name)
         target.parent.mkdir(parents=True, exist_ok=True)
         nbformat.write(nb, target)
-        print(f"executed {path.relative_to(ROOT)} in {time.perf_counter() - start:.1f} s -> {target.relative_to(ROOT)}")
+        print(f"{time.perf_counter() - start:.1f} s -> {target.relative_to(ROOT)}", flush=True)
     return 0
 
 
