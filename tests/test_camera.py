@@ -262,7 +262,7 @@ def test_projection_bad_inputs(cam):
         cam.is_world_within_fov([1.0, 2.0], DEMO_POSE)
 
 
-XML_OK = (data_dir() / "test_camera.xml").read_text()
+XML_OK = (data_dir() / "test_camera.xml").read_text(encoding="utf-8")
 
 
 @pytest.mark.parametrize("text, message", [

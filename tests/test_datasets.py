@@ -24,7 +24,7 @@ def _plain_copy(name, tmp_path):
 
 
 def _sha256sums():
-    rows = (line.split() for line in data_path("datasets", "SHA256SUMS").read_text().splitlines() if line.strip())
+    rows = (line.split() for line in data_path("datasets", "SHA256SUMS").read_text(encoding="utf-8").splitlines() if line.strip())
     return {name: digest for digest, name in rows}
 
 

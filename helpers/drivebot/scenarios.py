@@ -145,11 +145,11 @@ def generate_large_map(seed: int = LARGE_MAP_SEED, run_length: int = LARGE_MAP_R
 def _write(folder: pathlib.Path, landmarks: np.ndarray, waypoints: np.ndarray) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     ids = np.arange(1, landmarks.shape[1] + 1)
-    with open(folder / "landmarks.csv", "w") as f:
+    with open(folder / "landmarks.csv", "w", encoding="utf-8", newline="\n") as f:
         f.write("id,x,y\n")
         for i, (x, y) in zip(ids, landmarks.T):
             f.write(f"{i},{x:g},{y:g}\n")
-    with open(folder / "waypoints.csv", "w") as f:
+    with open(folder / "waypoints.csv", "w", encoding="utf-8", newline="\n") as f:
         f.write("x,y\n")
         for x, y in waypoints.T:
             f.write(f"{float(x)!r},{float(y)!r}\n")
