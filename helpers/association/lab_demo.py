@@ -83,7 +83,7 @@ class AssociationResult:
         return self.density.marginal([2 * k, 2 * k + 1])
 
 
-def _console_lines(image_name, m, in_fov, idx_landmarks, idx, s, Y):
+def _console_lines(image_name, m, in_fov, idx_landmarks, idx, s, Y, surprisal_format=".6g"):
     lines = [f"{m} features found in {image_name}"]
     for j, inside in enumerate(in_fov):
         lines.append(f"Landmark {j} is {'' if inside else 'NOT '}expected to be within camera FOV")
@@ -91,7 +91,7 @@ def _console_lines(image_name, m, in_fov, idx_landmarks, idx, s, Y):
         lines.append("No landmark is expected to be within camera FOV: nothing to associate.")
         lines.append("")
         return lines
-    lines.append(f"Surprisal = {s:.6g}")
+    lines.append(f"Surprisal = {s:{surprisal_format}}")
     for j, i in zip(idx_landmarks, idx):
         if i < 0:
             lines.append(f"No feature associated with landmark {j}.")
@@ -104,7 +104,8 @@ def _console_lines(image_name, m, in_fov, idx_landmarks, idx, s, Y):
 
 def association_demo(image, camera, state, image_name: str = "rendered scene", features: Features | None = None,
                      detector: dict | None = None, n_sigma: float = 3.0,
-                     enforce_joint_compatibility: bool = False, verbose: bool = True) -> AssociationResult:
+                     enforce_joint_compatibility: bool = False, verbose: bool = True,
+                     surprisal_format: str = ".6g") -> AssociationResult:
     """Run the lab's association demo on one image and (by default) print its console output.
 
     1. features = detect_features(image, **detector) (default :data:`DEMO_DETECTOR`), unless ``features``
@@ -115,6 +116,9 @@ def association_demo(image, camera, state, image_name: str = "rendered scene", f
     4. (idx, s) = snn(density, Y, s_U, n_sigma, enforce_joint_compatibility), s_U = log W + log H.
 
     With no landmark in view the result has an empty selection, surprisal 0 and says so (no error).
+    ``surprisal_format`` is the format spec of the printed surprisal: ".6g" (six significant digits) as the
+    lab's program printed it; a coarser one (e.g. ".1f") keeps the printed line identical across machines
+    whose last-bit floating-point differences move the surprisal slightly.
     """
     if not isinstance(image_name, str):
         raise ValueError(f"image_name must be a string, got {type(image_name).__name__}")
@@ -132,7 +136,7 @@ def association_demo(image, camera, state, image_name: str = "rendered scene", f
         idx, s = snn(density, Y, sU, n_sigma=n_sigma, enforce_joint_compatibility=enforce_joint_compatibility)
     else:
         density, idx, s = None, np.zeros(0, dtype=np.intp), 0.0
-    lines = _console_lines(image_name, len(features), in_fov, idx_landmarks, idx, s, Y)
+    lines = _console_lines(image_name, len(features), in_fov, idx_landmarks, idx, s, Y, surprisal_format)
     result = AssociationResult(image_name, features, in_fov, idx_landmarks, idx, float(s), density, sU,
                                bool(enforce_joint_compatibility), lines)
     if verbose:
