@@ -1,6 +1,6 @@
 """The lab scene, rendered: a chessboard on a self-similar textured plane seen through the calibrated camera.
 
-The Lab 8 demo photograph is not available, so the workbook renders its own (spec §9.2). The world frame
+The Lab 8 demo photograph is not available, so the workbook renders its own. The world frame
 {n} is the chessboard frame: origin at the first inner corner, x along the 10-corner direction, y along the
 7-corner direction, the board in the plane z = 0, z pointing into the plane (away from the camera).
 
@@ -56,10 +56,10 @@ __all__ = [
     "ChessboardNotFoundError",
 ]
 
-#: Camera pose recovered from the original photograph (spec §9.2): [rCNn (m); Θnc (rad)].
+#: Camera pose recovered from the original photograph: [rCNn (m); Θnc (rad)].
 REFERENCE_POSE = LAB_DEMO_CAMERA_POSE.copy()
 
-#: Landmark positions of the lab demo (spec §9.3), metres, world frame; row j = landmark j.
+#: Landmark positions of the lab demo, metres, world frame; row j = landmark j.
 LAB_LANDMARKS = lab_demo_state().landmark_positions().T.copy()
 
 PATTERN_SIZE = (10, 7)      # inner corners per row (x direction), per column (y direction)
@@ -252,7 +252,7 @@ def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=N
     Parameters
     ----------
     camera : helpers.camera.Camera (full 12-coefficient model).
-    pose : true camera pose [rCNn; Θnc] (default ``REFERENCE_POSE``, spec §9.2).
+    pose : true camera pose [rCNn; Θnc] (default ``REFERENCE_POSE``, the Lab 8 handout).
     seed : seeds the texture and the sensor noise (same seed → same bytes).
     markers : (3, k) world points that get a fiducial: points with z = 0 get a sticker on the plane,
         others (z < 0, camera side) a floating card if ``card``. Default: the lab landmarks off the

@@ -28,7 +28,7 @@ from .rotation import rot2rpy, rpy2rot
 
 __all__ = ["StateSLAM", "lab_demo_state", "LAB_DEMO_CAMERA_POSE"]
 
-#: Camera pose [rCNn (m); Θnc (rad)] of the Lab 8 demo scene (spec §9.2; body pose = camera pose).
+#: Camera pose [rCNn (m); Θnc (rad)] of the Lab 8 demo scene (body pose = camera pose).
 LAB_DEMO_CAMERA_POSE = np.array([-0.00114, 0.05088, -0.44589, 0.12179, 0.06344, 1.56839])
 
 _IDX_POSITION = np.arange(6, 9)
@@ -160,7 +160,7 @@ def _check_camera(camera):
 
 
 # ----------------------------------------------------------------------------------------------------
-# The Lab 8 demo state (spec §9.3)
+# The Lab 8 demo state
 # ----------------------------------------------------------------------------------------------------
 _DEMO_LANDMARKS = np.array([
     [-0.2, 0.1, 0.0], [0.0, -0.3, 0.0], [0.0, 0.6, 0.0], [0.4, 0.6, 0.0], [0.4, -0.4, 0.0],
@@ -179,11 +179,11 @@ _DEMO_POSE_SQRT = np.array([
 
 
 def lab_demo_state(camera_pose=None) -> StateSLAM:
-    """The 39-dimensional demo state of Lab 8 (spec §9.3): ν = 0 with a zero square-root block, the body
+    """The 39-dimensional demo state of Lab 8: ν = 0 with a zero square-root block, the body
     pose equal to the camera pose (rCBb = 0, Rbc = I, Θnb = rot2rpy(Rnc)), nine landmarks with diagonal
     square-root blocks, and the published 6 × 6 upper-triangular pose block.
 
-    ``camera_pose`` defaults to :data:`LAB_DEMO_CAMERA_POSE` (spec §9.2).
+    ``camera_pose`` defaults to :data:`LAB_DEMO_CAMERA_POSE`.
     """
     pose = LAB_DEMO_CAMERA_POSE if camera_pose is None else np.asarray(camera_pose, dtype=float)
     if pose.shape != (6,) or not np.all(np.isfinite(pose)):

@@ -137,7 +137,7 @@ def joint_compatibility(idx, sU, Y, density: Gaussian, n_sigma: float = 3.0):
 
 
 def lab_test_fixture() -> dict:
-    """The Lab 8 template's compatibility fixture (spec §8) from ``data/lab8_compatibility_fixture.json``:
+    """The Lab 8 template's compatibility fixture from ``data/lab8_compatibility_fixture.json``:
     ``mu_Y`` (6,), ``S_YY`` (6, 6), ``Y3`` (2, 3), ``Y13`` (2, 13), ``n_sigma``, ``sU``, ``image_size``,
     and the ready-made densities ``density_1`` (first landmark, size 2) and ``density_3`` (size 6)."""
     raw = json.loads((data_dir() / "lab8_compatibility_fixture.json").read_text(encoding="utf-8"))

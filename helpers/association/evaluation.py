@@ -7,7 +7,7 @@ association ``idx`` (same convention):
 - precision = TP / #{k : idx_k ≥ 0}                            (how many claimed pairings are right)
 - recall    = TP / #{k : truth_k ≥ 0}                          (how many true pairings were found)
 - accuracy  = fraction of the m *observations* whose label is right, the label of an observation being
-  the landmark it is paired with, or "none" (clutter / new landmark); as in the spec's anchor, "fraction
+  the landmark it is paired with, or "none" (clutter / new landmark); as in the usual definition, "fraction
   of correct labels".
 
 Over many trials the counts are summed first (micro-average), so a trial with more observations weighs

@@ -8,7 +8,7 @@ landmark index), the classic "most constrained first" rule; the order is reporte
 
 At a node H (a partial hypothesis with a pairings and joint distance D²_H) on level t, landmark k:
 
-1. **Incremental joint distance (spec §2.9).** With C_H = L Lᵀ, w = L⁻¹ f_H (D²_H = ‖w‖²),
+1. **Incremental joint distance (lecture L09).** With C_H = L Lᵀ, w = L⁻¹ f_H (D²_H = ‖w‖²),
    B = Cov(f_H, ν_k) = P[rows(H), rows(k)] and D = P_kk, appending the pairing (k, i) gives
 
        L W = B,   D − WᵀW = L₂ L₂ᵀ,   w_n = L₂⁻¹ (ν_ki − Wᵀ w),   D²_{H+(k,i)} = D²_H + ‖w_n‖²,

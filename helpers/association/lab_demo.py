@@ -1,11 +1,11 @@
-"""The Lab 8 association demo (spec §9): features → FOV pre-selection → bundle density → SNN, the lab's
+"""The Lab 8 association demo: features → FOV pre-selection → bundle density → SNN, the lab's
 console lines, its Figure 1, and a ground-truth check that the original photograph could never have.
 
     result = association_demo(image, camera, state, image_name="rendered scene")   # prints like the lab
     fig, ax = plot_association(image, result)                                        # Figure 1 conventions
     table = ground_truth_check(result, camera, true_pose, true_landmarks)
 
-Console format (spec §9.6): "<m> features found in <image name>", one "Landmark j is [NOT ]expected to be
+Console format: "<m> features found in <image name>", one "Landmark j is [NOT ]expected to be
 within camera FOV" line per landmark, "Surprisal = <s>", one line per selected landmark
 ("No feature associated with landmark j." or "Feature i located at [x y] in image matches landmark j."),
 then a blank line.
@@ -35,7 +35,7 @@ __all__ = [
 DEMO_DETECTOR = dict(max_features=10000, method="shi-tomasi", threshold=0.01, block_size=5, nms_radius=3,
                      smoothing=1.0)
 
-#: Figure 1 colours (RGB in [0, 1]; spec §9.7).
+#: Figure 1 colours (RGB in [0, 1]).
 FIGURE1_COLORS = {
     "feature": (127 / 255, 0.0, 0.0),        # dark red dots: all detected features
     "associated": (0.0, 0.0, 1.0),           # blue '+', ellipse and label: landmark associated
@@ -183,7 +183,7 @@ def ground_truth_check(result: AssociationResult, camera, true_pose, true_landma
 
 def plot_association(image, result: AssociationResult, ax=None, n_sigma: float = 3.0, title: str | None = None,
                      image_scale: float = 0.5, window=None):
-    """Figure 1 of the lab (spec §9.7) with matplotlib over the image.
+    """Figure 1 of the lab with matplotlib over the image.
 
     All features: dark-red dots. Each selected landmark: '+' at the predicted mean and its 3σ ellipse
     (100 points; segments drawn only where both ends are inside the image), blue if associated and

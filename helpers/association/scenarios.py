@@ -9,8 +9,8 @@ Sensor: sees the ``n_visible`` nearest landmarks (or those within ``max_range``)
 probability ``p_detect`` (missed detections), plus ``n_clutter`` spurious points uniform in the sensed disc.
 
 **Observation space — Cartesian points in the robot frame.** A range-bearing sensor's (r, φ) is converted
-to the point z = r [cos φ, sin φ] in the robot frame, with isotropic noise σ_z (as in the spec's measured
-anchor). Measurement model and Jacobians:
+to the point z = r [cos φ, sin φ] in the robot frame, with isotropic noise σ_z (a common
+choice for simulated point-landmark scans). Measurement model and Jacobians:
 
     z_k = R(θ)ᵀ (m_k − t),   ∂z/∂t = −R(θ)ᵀ,   ∂z/∂θ = (dR/dθ)ᵀ (m_k − t),   ∂z/∂m_k = R(θ)ᵀ.
 

@@ -1,4 +1,4 @@
-"""Surprisal nearest neighbour (SNN) data association — Lab 8 §3 (spec §7).
+"""Surprisal nearest neighbour (SNN) data association — Lab 8 §3.
 
 Given the predicted feature-bundle density p(h) = N(μ, P), P = SᵀS, of n selected landmarks (landmark k of
 the selection in rows 2k, 2k+1) and m measured features Y = [y_0 … y_{m−1}] ∈ R^{2×m}, SNN builds an
@@ -99,7 +99,7 @@ def _r_factor(A):
 # vectorised pieces
 # ----------------------------------------------------------------------------------------------------
 def snn(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool = False):
-    """Surprisal nearest neighbour association (spec §7, intended semantics), vectorised over features.
+    """Surprisal nearest neighbour association (the lab's intended semantics), vectorised over features.
 
     Parameters
     ----------
@@ -163,7 +163,7 @@ def snn(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool 
 
 
 def snn_reference(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool = False):
-    """The lab's SNN written literally (spec §7): Python loops over landmarks and features, calling
+    """The lab's SNN written literally: Python loops over landmarks and features, calling
     ``individual_compatibility`` (a 2×2 marginal QR per pair) and ``joint_compatibility`` (a joint marginal
     QR and log-density per compatible candidate). Taken features are never offered again.
 

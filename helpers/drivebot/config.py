@@ -1,4 +1,4 @@
-"""``SimulatorConfiguration``: the DriveBot simulator's parameters with the coursework's defaults (spec §3.8).
+"""``SimulatorConfiguration``: the DriveBot simulator's parameters with the coursework's defaults.
 
 Field names are the MATLAB names in snake_case (``perturbWithNoise`` → ``perturb_with_noise``); the tick
 ``DT`` is ``dt`` and the wheelbase ``B`` is ``wheelbase``. Angles are radians, covariances full matrices.

@@ -1,6 +1,6 @@
 """DriveBot's vertices and the two edge models that differ from ``helpers.graph``'s standard 2D set.
 
-Reused unchanged from ``helpers.graph`` (identical models, spec §8.4–8.6):
+Reused unchanged from ``helpers.graph`` (identical models):
 
     EdgePositionPrior   GPS with lever arm l:  e = [x, y] + R(ψ) l − z,
                         J = [[1, 0, −s l_x − c l_y], [0, 1, c l_x − s l_y]]   (the ψ column matters: |l| = 22.4 m)
@@ -12,7 +12,7 @@ Defined here:
 ``VehicleVertex``  — ``VertexSE2`` (x ⊞ δ = x + δ, then ψ wrapped) that also stores its ``time``.
 ``LandmarkVertex`` — ``VertexPointXY`` (additive) that also stores its 1-based ``landmark_id``.
 
-``VehicleKinematicsEdge`` (spec §8.3) — binary, z = u = [s, 0, ψ̇] (the previous odometry), parameter ``dt``:
+``VehicleKinematicsEdge`` — binary, z = u = [s, 0, ψ̇] (the previous odometry), parameter ``dt``:
 
     x_{k+1} = x_k + ΔT M(ψ_k)(u + v)      ⇒      e = v = Mᵀ(ψ_k) Δ / ΔT − u,
     Δ = [x_{k+1} − x_k, y_{k+1} − y_k, wrap(ψ_{k+1} − ψ_k)],  c = cos ψ_k, s = sin ψ_k,
@@ -21,7 +21,7 @@ Defined here:
     (Evaluated for all edges of the class by one compiled kernel, ``_kinematics_kernel``.)
     ``initialize()`` sets x_{k+1} = x_k ⊞ ΔT M(ψ_k) z (forward prediction, ψ wrapped) — see ``predict``.
 
-``BuggyCompassEdge`` (spec §9) — the coursework's provided compass edge: e = ψ + Δψ_C − z with **no wrap**,
+``BuggyCompassEdge`` — the coursework's provided compass edge: e = ψ + Δψ_C − z with **no wrap**,
 J = [0, 0, 1]. Once ψ + Δψ_C leaves [−π, π) while the simulator's z is wrapped, every residual is off by
 2π. The fix is ``EdgeHeadingPrior``, which wraps e (J unchanged).
 """
@@ -122,6 +122,8 @@ class VehicleKinematicsEdge(BaseEdge):
 
     @staticmethod
     def evaluate(states, z, params, jacobians=True):
+        # Q1b: the process-model edge. e = Mᵀ(ψ_k) Δ / ΔT − u, analytic J_k and J_{k+1} (module docstring),
+        # for every edge of the class at once.
         xk, xn = states
         dt = np.ascontiguousarray(params["dt"], dtype=float).reshape(-1)
         e, jk, jn = _kinematics_kernel(np.ascontiguousarray(xk), np.ascontiguousarray(xn),
@@ -140,10 +142,11 @@ class BuggyCompassEdge(EdgeHeadingPrior):
     """The coursework's provided (buggy) compass edge: e = ψ + offset − z, NOT wrapped; J = [0, 0, 1].
 
     It is the fixed compass edge (``helpers.graph.EdgeHeadingPrior``, e = wrap(ψ + offset − z)) with the wrap
-    left out, so once ψ + offset leaves [−π, π) every residual is off by 2π (spec §9)."""
+    left out, so once ψ + offset leaves [−π, π) every residual is off by 2π."""
 
     @staticmethod
     def evaluate(states, z, params, jacobians=True):
+        # Q1c: the bug. e is not wrapped; the fix (EdgeHeadingPrior.evaluate) returns wrap_angle(e).
         _, jac = EdgeHeadingPrior.evaluate(states, z, params, jacobians)
         e = (states[0][:, 2] + params["offset"] - z[:, 0])[:, None]
         return e, jac

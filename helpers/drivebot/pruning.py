@@ -3,7 +3,7 @@
 Graph pruning keeps every vertex the SLAM system needs but deletes *edges* that add little information, so
 the Hessian H = Σ JᵀΩJ has fewer non-zeros, each Levenberg–Marquardt iteration is cheaper, and (with fewer
 residuals) the optimiser converges faster. Deleting vertices properly would need marginalisation, which
-creates fill-in between the neighbours of the deleted vertex; deleting edges does not (spec §14).
+creates fill-in between the neighbours of the deleted vertex; deleting edges does not.
 
 Every heuristic here only removes **landmark range-bearing edges**; the kinematics chain is untouched, so
 with prediction edges kept no vehicle vertex is orphaned. Each landmark always keeps at least one

@@ -1,4 +1,4 @@
-"""Running a question: the coursework's main loop (spec §2.5) and one entry point, ``run_question``.
+"""Running a question: the coursework's main loop and one entry point, ``run_question``.
 
 Main loop, per simulator tick k (store index k, N ticks in all):
 
@@ -11,7 +11,7 @@ The events of the final step (the one in which the controller stops) are never p
 the last tick did not optimise, ``optimize(20)`` runs and is recorded at the last index. The vehicle
 histories are then the smoothed estimates from one marginal computation on the final graph.
 
-Per-question settings (spec §5; every one can be overridden by keyword):
+Per-question settings (from the coursework launcher scripts; every one can be overridden by keyword):
 
 | question | scenario  | sensors / options                                                   | period |  N   |
 |----------|-----------|---------------------------------------------------------------------|--------|------|
@@ -116,7 +116,7 @@ class Results:
         return self.system.landmark_estimates()
 
     def chi2_bounds(self, k: float = 4.0) -> tuple[float, float]:
-        """dof ± k·√(2·dof) with dof = measurement dimensions − free state dimensions (spec §11)."""
+        """dof ± k·√(2·dof) with dof = measurement dimensions − free state dimensions."""
         dof = self.graph_statistics()["dof"]
         half = k * math.sqrt(2.0 * max(dof, 0))
         return dof - half, dof + half

@@ -1,6 +1,6 @@
 """DriveBot scenarios: landmark maps and waypoint lists, stored as small CSV files in ``data/drivebot/``.
 
-Every scenario starts at (0, 0) with heading 0 (spec §4). Layout::
+Every scenario starts at (0, 0) with heading 0. Layout::
 
     data/drivebot/<scenario>/landmarks.csv    header ``id,x,y``   (ids 1-based, ascending)
     data/drivebot/<scenario>/waypoints.csv    header ``x,y``      (visited in order)
@@ -31,7 +31,7 @@ ONE_LOOP = [(70, 0), (70, 70), (0, 70), (0, 0)]
 LARGE_MAP_FIRST_WAYPOINTS = [(49.16, 54.47), (28.82, 16.58), (65.67, 50.65)]
 #: Seed of the one-off draw of the large map (landmarks and waypoints 4–20); see generate_large_map.
 LARGE_MAP_SEED = 20240229
-#: The coursework's large-map run length (spec §4); the last waypoint is placed to reproduce it.
+#: The coursework's large-map run length; the last waypoint is placed to reproduce it.
 LARGE_MAP_RUN_LENGTH = 5667
 
 _DEFINITIONS = {

@@ -1,4 +1,4 @@
-"""The DriveBot simulator: truth model, waypoint controller and sensors (spec §3).
+"""The DriveBot simulator: truth model, waypoint controller and sensors.
 
 One ``step()`` moves tick k−1 → k:
 

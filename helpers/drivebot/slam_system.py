@@ -1,4 +1,4 @@
-"""``DriveBotSLAMSystem``: builds the coursework's factor graph from the event stream (spec §2.4, §6, §10).
+"""``DriveBotSLAMSystem``: builds the coursework's factor graph from the event stream.
 
 Event processing (per batch, events in queue order):
 
@@ -177,6 +177,9 @@ class DriveBotSLAMSystem:
         self._built = False
 
     def _predict_to_time(self, time, dt):
+        # Q1b: the prediction step. Each tick adds one new vehicle vertex, initialised by the process model
+        # x_{k+1} = x_k + ΔT M(ψ_k) u (ψ wrapped), and one VehicleKinematicsEdge from the previous vertex with the
+        # stored odometry u as its measurement, Ω = R_odo⁻¹ and the tick length ΔT as its parameter.
         if self._u_info is None:
             raise ValueError("prediction needs an odometry event first (none received)")
         prev = self.current_vehicle_vertex
@@ -198,6 +201,8 @@ class DriveBotSLAMSystem:
         self._built = False
 
     def _handle_compass(self, event):
+        # Q1c: one unary compass edge on the current vehicle vertex, e = ψ + Δψ_C − z. The fix: the fixed edge
+        # (EdgeHeadingPrior, the default) wraps e into [−π, π); the coursework's buggy edge does not.
         info = self._information(event.covariance)
         e = self._compass_class([self.current_vehicle_vertex], measurement=event.data, information=info,
                                 offset=self.config.compass_angular_offset)
@@ -205,6 +210,8 @@ class DriveBotSLAMSystem:
         self._built = False
 
     def _handle_gps(self, event):
+        # Q1d: the GPS is a 2-D observation of the antenna, e = [x, y] + R(ψ) l − z with the lever arm l: one
+        # unary EdgePositionPrior on the current vehicle vertex, Ω = R_GPS⁻¹.
         if event.data.shape != (2,):
             raise ValueError(f"a GPS event must carry a 2-D position, got shape {event.data.shape}")
         e = EdgePositionPrior([self.current_vehicle_vertex], measurement=event.data,
@@ -214,6 +221,9 @@ class DriveBotSLAMSystem:
         self._built = False
 
     def _handle_landmarks(self, event):
+        # Q2b: SLAM. A landmark seen for the first time gets a vertex, initialised by inverting the observation
+        # model; every observation adds a range-bearing edge between the current vehicle vertex and its landmark,
+        # e = [‖m − p‖ − z_r, wrap(atan2(m_y − y, m_x − x) − ψ − z_β)], Ω = R_laser⁻¹.
         info = self._information(event.covariance)
         vehicle = self.current_vehicle_vertex
         x = vehicle.estimate
@@ -240,6 +250,8 @@ class DriveBotSLAMSystem:
 
     def _delete_prediction_edges(self):
         """Q3a: remove the kinematics edges (keep the first one if requested); orphaned vertices go too."""
+        # Q3a: only edges added since the last call are visited; with keep_first_prediction_edge the very first
+        # kinematics edge stays, which keeps the graph connected to the fixed first vertex.
         start = self._removal_done_upto
         if start == 0 and self.keep_first_prediction_edge:
             start = 1
@@ -260,12 +272,12 @@ class DriveBotSLAMSystem:
         ``optimization_algorithm``); returns the final χ².
 
         Raises helpers.graph.GaugeFreedomError when nothing anchors the graph (e.g. all prediction edges
-        removed, spec §10).
+        removed: coursework Q3a).
         """
-        if self.pre_optimization_hook is not None:
+        if self.pre_optimization_hook is not None:  # Q3b: a pruning heuristic edits the graph here
             self.pre_optimization_hook(self)
             self._built = False
-        if self.remove_prediction_edges:
+        if self.remove_prediction_edges:  # Q3a: delete the prediction edges before optimising
             self._delete_prediction_edges()
         self.ensure_structure()
         return float(self.graph.optimize(max_iterations, algorithm=self.optimization_algorithm))
@@ -336,12 +348,14 @@ class DriveBotSLAMSystem:
 
     # ================================================================================= statistics
     def graph_statistics(self) -> dict:
-        """Counts by type from the graph itself (spec §12)::
+        """Counts by type from the graph itself::
 
             vehicle_vertices, landmark_vertices, edges_by_type {class name: count}, landmark_edges,
             observations_per_step (landmark edges / vehicle vertices), observations_per_landmark,
-            measurement_dimensions, free_state_dimensions, dof (= the χ² sanity target of spec §11).
+            measurement_dimensions, free_state_dimensions, dof (= the χ² sanity target).
         """
+        # Q2c: everything is read from the graph: vertices and edges counted by their class (the Python
+        # counterpart of MATLAB's isa), measurement dimensions per edge type, free state dimensions.
         verts = self.graph.vertices()
         n_vehicle = sum(isinstance(v, VehicleVertex) for v in verts)
         n_landmark = sum(isinstance(v, LandmarkVertex) for v in verts)

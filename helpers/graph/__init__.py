@@ -8,7 +8,7 @@ Students build a graph one element at a time::
     g.add_vertex(a); g.add_vertex(b)
     g.add_edge(EdgeSE2([a, b], measurement=[1, 0, 0], information=np.eye(3)))
     g.initialize_optimization()          # builds the structure (again after any add/remove/set_fixed)
-    chi2 = g.optimize(50)                # coursework LM (spec §7.5); algorithm="gn" (Gauss–Newton) or
+    chi2 = g.optimize(50)                # coursework LM; algorithm="gn" (Gauss–Newton) or
                                          # "lm-gtsam" (GTSAM's default LM schedule); g.statistics per iteration
     cov = g.compute_marginals([b])[b]    # 3×3 block of H⁻¹ at the solution
 

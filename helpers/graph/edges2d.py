@@ -137,6 +137,8 @@ class EdgePositionPrior(BaseEdge):
 
     @staticmethod
     def evaluate(states, z, params, jacobians=True):
+        # Q1d: the antenna sits at the lever arm l in the body frame, so h = [x, y] + R(ψ) l and the ψ column of J
+        # is ∂(R(ψ) l)/∂ψ = [−(R l)_y, (R l)_x]; with |l| = 22.4 m it couples heading and position.
         (x,) = states
         lev = params["lever_arm"]
         c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
@@ -181,6 +183,8 @@ class EdgeRangeBearing(BaseEdge):
 
     @staticmethod
     def evaluate(states, z, params, jacobians=True):
+        # Q2b: the landmark observation model, range and bearing from the vehicle to the landmark, the bearing
+        # relative to the heading and wrapped; J_m = [[d_x/r, d_y/r], [−d_y/r², d_x/r²]], J_x = [−J_m | [0, −1]ᵀ].
         x, m = states
         dx, dy = m[:, 0] - x[:, 0], m[:, 1] - x[:, 1]
         r2 = dx * dx + dy * dy

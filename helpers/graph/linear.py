@@ -7,7 +7,7 @@ structure change from the edge → vertex index arrays (``np.unique`` on linear 
 every contribution, the position of its value in the CSC data array); every iteration only scatters the new values
 with ``np.bincount``.
 
-Factorisation. LDLᵀ by the maintained library qdldl (chosen by measurement, peers spec §5: qdldl 87 ms / 58 ms
+Factorisation. LDLᵀ by the maintained library qdldl (chosen by measurement: qdldl 87 ms / 58 ms
 refactor on W10000 against cholespy 139 ms and splu 133 ms). ``qdldl.Solver`` is built once per pattern: it computes
 the AMD fill-reducing ordering P and the symbolic analysis (elimination tree, column counts of L); every later
 matrix with the same pattern goes through ``Solver.update`` (numeric factorisation only) and ``Solver.solve``.

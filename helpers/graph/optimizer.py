@@ -732,7 +732,7 @@ class SparseOptimizer:
             if np.sqrt(r0) < EPS3:
                 stop = True
             k += 1
-        self._set_x(x)  # the vertices hold the accepted state (spec §7.7)
+        self._set_x(x)  # the vertices hold the accepted state
         self._hb = (data, b, r0)
         return r0
 

@@ -1,0 +1,116 @@
+"""Notebook support: prose-guarding checks that respect a student's parameters, and showing real source code.
+
+Every notebook opens with one parameter cell (the knobs a student would turn) and ends it with::
+
+    claims = Claims(globals(), SEED=0, CLUTTER=5)      # the defaults the prose was written for
+
+``claims.check(condition, "what the text says")`` then guards each sentence of the prose: at the default
+parameters a false claim raises (so a green test run means the text is true); after a student changed a
+parameter it prints a note instead of crashing, e.g. "note (your parameters): no longer holds: JCBB's recall
+is above 0.9". ``show_source(obj)`` displays the current source of a function, method or class, so the notebook
+shows the code that runs rather than a copy that can drift.
+"""
+from __future__ import annotations
+
+import inspect
+import math
+import numbers
+import textwrap
+
+__all__ = ["Claims", "show_source", "source_lines"]
+
+
+def _same(a, b) -> bool:
+    """Equality of two parameter values (numbers compared as numbers, sequences element-wise)."""
+    if isinstance(a, numbers.Number) and isinstance(b, numbers.Number):
+        return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return a == b
+
+
+class Claims:
+    """Checks of a notebook's prose: strict at the default parameters, a printed note otherwise.
+
+    Parameters
+    ----------
+    namespace : the notebook's ``globals()`` (the parameter values are read from it once, now)
+    **defaults : each parameter's name and the default value the prose was written for
+    """
+
+    def __init__(self, namespace: dict, **defaults):
+        if not isinstance(namespace, dict):
+            raise ValueError(f"namespace must be the notebook's globals() dict, got {type(namespace).__name__}")
+        if not defaults:
+            raise ValueError("name at least one parameter and its default, e.g. Claims(globals(), SEED=0)")
+        missing = [name for name in defaults if name not in namespace]
+        if missing:
+            raise ValueError(f"parameters {missing} are not defined in the notebook (define them before Claims)")
+        self.defaults = dict(defaults)
+        self.values = {name: namespace[name] for name in defaults}
+        self.changed = [name for name in defaults if not _same(self.values[name], defaults[name])]
+        self.failed: list[str] = []
+
+    @property
+    def at_defaults(self) -> bool:
+        """True when every parameter has the value the prose was written for."""
+        return not self.changed
+
+    def check(self, condition, claim: str) -> bool:
+        """Guard one claim of the text. Returns the condition as a bool.
+
+        At the defaults a false claim raises AssertionError naming it; with changed parameters it prints
+        ``note (your parameters): no longer holds: <claim>`` once and returns False.
+        """
+        if not isinstance(claim, str) or not claim:
+            raise ValueError("claim must be a non-empty string saying what the text claims")
+        ok = bool(condition)
+        if not ok:
+            if self.at_defaults:
+                raise AssertionError(f"the text claims: {claim}")
+            if claim not in self.failed:
+                self.failed.append(claim)
+                print(f"note (your parameters {', '.join(self.changed)}): no longer holds: {claim}")
+        return ok
+
+    def __repr__(self):
+        state = "defaults" if self.at_defaults else f"changed: {', '.join(self.changed)}"
+        return f"Claims({state}; {len(self.failed)} claim(s) no longer hold)"
+
+
+def source_lines(obj) -> str:
+    """The source text of a function, method or class, dedented (raises ValueError if it has none)."""
+    target = inspect.unwrap(obj)
+    if isinstance(target, (staticmethod, classmethod)):
+        target = target.__func__
+    try:
+        text = inspect.getsource(target)
+    except (OSError, TypeError) as err:
+        raise ValueError(f"no Python source is available for {obj!r}: {err}") from None
+    return textwrap.dedent(text)
+
+
+def show_source(obj, start: str | None = None, stop: str | None = None):
+    """Display the source of ``obj`` (syntax-highlighted in Jupyter, plain text elsewhere).
+
+    ``start`` / ``stop``: show only the lines from the first one containing ``start`` up to (excluding) the
+    first later one containing ``stop`` — e.g. one method's body part that a coursework question edits.
+    """
+    text = source_lines(obj)
+    if start is not None or stop is not None:
+        lines = text.splitlines()
+        first = next((i for i, line in enumerate(lines) if start is None or start in line), None)
+        if first is None:
+            raise ValueError(f"no line of {getattr(obj, '__qualname__', obj)} contains {start!r}")
+        last = next((i for i in range(first + 1, len(lines)) if stop is not None and stop in lines[i]), len(lines))
+        text = textwrap.dedent("\n".join(lines[first:last])) + "\n"
+    name = getattr(obj, "__qualname__", getattr(obj, "__name__", repr(obj)))
+    module = getattr(inspect.unwrap(obj), "__module__", "")
+    header = f"# {module}.{name}" if module else f"# {name}"
+    try:
+        from IPython.display import Code, display
+    except ImportError:  # outside Jupyter
+        print(header + "\n" + text)
+        return None
+    display(Code(header + "\n" + text, language="python"))
+    return None
