@@ -163,6 +163,22 @@ def test_scenario_is_seeded_and_consistent():
     assert c.n < 60 and c.density.size == 2 * c.n
 
 
+def test_scenario_density_is_the_linearised_state_plus_noise():
+    # C = G Σ Gᵀ + σ² I with G = ∂h/∂y at the estimate: the joint innovation covariance of the lecture
+    sc = range_bearing_scenario(seed=2, n_landmarks=40, n_visible=6, candidate_range=10.0, meas_sigma=0.2)
+    y = sc.state.mean
+    assert sc.meas_sigma == 0.2 and y.size == 3 + 2 * sc.n
+    np.testing.assert_allclose(y[:3], sc.pose_est)
+    np.testing.assert_allclose(y[3:].reshape(-1, 2), sc.landmarks_est[sc.candidates])
+    z, J_pose, J_lm = observe_points(y[:3], y[3:].reshape(-1, 2))
+    G = np.zeros((2 * sc.n, y.size))
+    for k in range(sc.n):
+        G[2 * k:2 * k + 2, :3] = J_pose[k]
+        G[2 * k:2 * k + 2, 3 + 2 * k:5 + 2 * k] = J_lm
+    np.testing.assert_allclose(sc.density.mean, z.ravel(), atol=1e-12)
+    np.testing.assert_allclose(sc.density.cov, G @ sc.state.cov @ G.T + 0.04 * np.eye(2 * sc.n), atol=1e-10)
+
+
 @pytest.mark.parametrize("kwargs, match", [
     ({}, "seed or rng"), ({"seed": 1, "n_landmarks": 0}, "n_landmarks"),
     ({"seed": 1, "n_visible": 500}, "n_visible"), ({"seed": 1, "p_detect": 1.5}, "p_detect"),

@@ -1,12 +1,24 @@
-"""Figures for the association notebooks: gates, pairings and the JCBB interpretation tree."""
+"""Figures for the association notebooks: gates, pairings, the JCBB interpretation tree, and the
+ground-truth evaluation (rates with Wilson intervals against one factor, JCBB's cost against m)."""
 from __future__ import annotations
 
+import matplotlib.ticker as mticker
 import numpy as np
 
 from helpers.association.jcbb import TRACE_BEST, TRACE_BOUND, TRACE_EXPANDED, TRACE_JC_FAIL, JCBBTrace
 from helpers.figures import COLORS
 
-__all__ = ["draw_gates", "draw_association", "draw_interpretation_tree", "tree_layout"]
+__all__ = ["draw_gates", "draw_association", "draw_interpretation_tree", "tree_layout", "ALGORITHM_STYLE",
+           "algorithm_style", "plot_rate_sweep", "log_count_axis", "draw_node_counts", "draw_times"]
+
+#: One colour (from the workbook's palette) and marker per association algorithm.
+ALGORITHM_STYLE = {
+    "NN": dict(color=COLORS["muted"], marker="o"),
+    "ICNN": dict(color=COLORS["estimate"], marker="s"),
+    "ML": dict(color=COLORS["truth"], marker="^"),
+    "SNN": dict(color=COLORS["bound"], marker="v"),
+    "JCBB": dict(color=COLORS["alt"], marker="D"),
+}
 
 
 def draw_gates(ax, density, n_sigma: float = 3.0, landmarks=None, color=None, label_landmarks=True):
@@ -106,3 +118,81 @@ def draw_interpretation_tree(ax, trace: JCBBTrace, best_idx=None):
     ax.set_xticks([])
     ax.grid(False)
     ax.legend(loc="lower left", fontsize=8)
+
+
+def algorithm_style(name: str) -> dict:
+    """Colour and marker of an algorithm (``ALGORITHM_STYLE``; other names get the muted colour)."""
+    if not isinstance(name, str):
+        raise ValueError(f"name must be an algorithm name (str), got {type(name).__name__}")
+    return dict(ALGORITHM_STYLE.get(name, dict(color=COLORS["muted"], marker="x")))
+
+
+def plot_rate_sweep(ax, results, key: str, confidence: float = 0.95, names=None, jitter: float = 0.0):
+    """One line per algorithm: the rate ``key`` (precision / recall / accuracy) of ``results``
+    ({factor value: TrialResults}) against the factor value, with Wilson ``confidence`` intervals as error
+    bars. ``jitter`` shifts the algorithms' x positions apart (in data units) so the bars do not overlap."""
+    if not results:
+        raise ValueError("results must hold at least one setting")
+    first = next(iter(results.values()))
+    names = list(first.names if names is None else names)
+    xs = np.asarray(list(results), dtype=float)
+    for j, name in enumerate(names):
+        rate = np.array([results[v].summary()[name][key] for v in results])
+        ci = np.array([results[v].interval(name, key, confidence) for v in results])
+        shift = jitter * (j - 0.5 * (len(names) - 1))
+        ax.errorbar(xs + shift, rate, yerr=np.vstack([rate - ci[:, 0], ci[:, 1] - rate]), capsize=2.5,
+                    ms=5, label=name, **algorithm_style(name))
+
+
+def log_count_axis(ax, axis: str = "y"):
+    """A log axis with plain labels at the powers of ten (1, 10, 100, 1 000, …) and unlabelled minor ticks;
+    the lower limit is moved down to a power of ten, so at least one labelled tick is visible."""
+    if axis not in ("x", "y"):
+        raise ValueError(f"axis must be 'x' or 'y', got {axis!r}")
+    target = ax.yaxis if axis == "y" else ax.xaxis
+    (ax.set_yscale if axis == "y" else ax.set_xscale)("log")
+    lo, hi = ax.get_ylim() if axis == "y" else ax.get_xlim()
+    data_lo = ax.dataLim.y0 if axis == "y" else ax.dataLim.x0
+    if lo > 0 and hi > 0 and np.isfinite(data_lo) and data_lo > 0:
+        lo = min(lo, 10.0 ** np.floor(np.log10(data_lo)))      # the decade below the smallest value
+        (ax.set_ylim if axis == "y" else ax.set_xlim)(lo, hi)
+    target.set_major_locator(mticker.LogLocator(base=10.0, numticks=12))
+    target.set_major_formatter(mticker.FuncFormatter(lambda v, _: f"{v:,.0f}".replace(",", " ") if v >= 1
+                                                     else f"{v:g}"))
+    target.set_minor_locator(mticker.LogLocator(base=10.0, subs=np.arange(2, 10), numticks=12))
+    target.set_minor_formatter(mticker.NullFormatter())
+
+
+def draw_node_counts(ax, cost, max_nodes=None, name: str = "JCBB"):
+    """Median and maximum expanded nodes of algorithm ``name`` against m (``cost``: {m: TrialResults}),
+    with the node budget ``max_nodes`` as a labelled horizontal line and the number of searches it cut."""
+    ms = list(cost)
+    nodes = [cost[m].counts[name]["nodes"] for m in ms]
+    col = algorithm_style(name)["color"]
+    ax.plot(ms, [np.median(v) for v in nodes], "o-", color=col, label="median")
+    ax.plot(ms, [np.max(v) for v in nodes], "o--", color=col, alpha=0.6, label="maximum")
+    if max_nodes is not None:
+        n_cut = sum(int(cost[m].counts[name]["exhausted"].sum()) for m in ms)
+        n_all = sum(cost[m].n_trials for m in ms)
+        ax.axhline(max_nodes, color=COLORS["bound"], ls=":", lw=1.2,
+                   label=f"node budget {max_nodes:,}".replace(",", " ") + f" (cut {n_cut} of {n_all} searches)")
+    ax.set_xticks(ms)
+    log_count_axis(ax)
+    ax.set_xlabel("observed landmarks m (+ clutter)")
+    ax.set_ylabel(f"{name} expanded nodes per scene")
+    ax.legend(loc="upper left")
+
+
+def draw_times(ax, cost, names):
+    """Median (solid) and maximum (dashed) time per call of each algorithm in ``names`` against m, in ms
+    (``cost``: {m: TrialResults})."""
+    ms = list(cost)
+    for name in names:
+        st = algorithm_style(name)
+        times = [1e3 * cost[m].counts[name]["time"] for m in ms]
+        ax.plot(ms, [np.median(t) for t in times], "-", label=f"{name} median", **st)
+        ax.plot(ms, [np.max(t) for t in times], "--", alpha=0.6, label=f"{name} max", **st)
+    ax.set_xticks(ms)
+    log_count_axis(ax)
+    ax.set_xlabel("observed landmarks m (+ clutter)")
+    ax.set_ylabel("time per call [ms]")

@@ -59,6 +59,9 @@ class Scenario:
     is_clutter : (m,) True for spurious observations
     pose_true, pose_est : (3,) true and estimated pose; pose_cov : (3, 3)
     landmarks_true, landmarks_est : (N, 2) map positions
+    state : the SLAM estimate N(ȳ, Σ) over [pose; candidate landmarks] the density was predicted from
+        (range_bearing_scenario; None for the camera scenario)
+    meas_sigma : σ of the isotropic measurement noise (R = σ² I per observation)
     """
 
     density: Gaussian
@@ -71,6 +74,8 @@ class Scenario:
     pose_cov: np.ndarray
     landmarks_true: np.ndarray
     landmarks_est: np.ndarray
+    state: Gaussian | None = None
+    meas_sigma: float | None = None
 
     @property
     def m(self) -> int:
@@ -229,7 +234,7 @@ def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size:
     truth[position[source[cols[hit]]]] = cols[hit]
     return Scenario(density=density, Y=Y, truth=truth, candidates=candidates,
                     is_clutter=source < 0, pose_true=pose_true, pose_est=pose_est, pose_cov=pose_cov,
-                    landmarks_true=lm_true, landmarks_est=lm_est)
+                    landmarks_true=lm_true, landmarks_est=lm_est, state=state, meas_sigma=meas_sigma)
 
 
 @functools.lru_cache(maxsize=1)
@@ -278,4 +283,5 @@ def lab_camera_scenario(seed=None, rng=None, *, n_clutter: int = 1000, p_detect:
     mean = state.density.mean
     return Scenario(density=density, Y=Y, truth=truth, candidates=sel, is_clutter=source < 0,
                     pose_true=x_true[6:12], pose_est=mean[6:12], pose_cov=state.density.cov[6:12, 6:12],
-                    landmarks_true=x_true[12:].reshape(n, 3), landmarks_est=mean[12:].reshape(n, 3))
+                    landmarks_true=x_true[12:].reshape(n, 3), landmarks_est=mean[12:].reshape(n, 3),
+                    meas_sigma=pixel_sigma)

@@ -1,0 +1,48 @@
+"""O(K·N) nearest neighbour: distances equal the dense formula, blocks do not change the answer, timing API."""
+import numpy as np
+import pytest
+
+from helpers.association.nn_timing import (loglog_slope, nn_distance_table, per_observation_nn, random_nn_problem,
+                                           time_nn)
+
+
+def test_distances_and_labels_match_the_dense_formula():
+    rng = np.random.default_rng(1)
+    mu, S, Y = random_nn_problem(rng, 37, 23)
+    d2 = nn_distance_table(mu, S, Y)
+    ref = np.array([[nu @ np.linalg.solve(S[j], nu) for nu in (Y.T - mu[j])] for j in range(37)])
+    np.testing.assert_allclose(d2, ref, rtol=1e-10)
+    labels = per_observation_nn(mu, S, Y)
+    assert labels.tolist() == np.argmin(ref, axis=0).tolist()
+    assert per_observation_nn(mu, S, Y, block_pairs=1).tolist() == labels.tolist()
+    gated = per_observation_nn(mu, S, Y, gate=5.0)
+    assert np.all((gated == -1) == (ref.min(axis=0) > 5.0))
+
+
+def test_timing_and_slope():
+    K, N, t = time_nn([5, 10], [7], repeats=1)
+    assert K.tolist() == [5, 10] and N.tolist() == [7, 7] and np.all(t > 0)
+    assert loglog_slope([1, 10, 100], [2, 20, 200]) == pytest.approx(1.0)
+
+
+def test_bad_inputs():
+    rng = np.random.default_rng(0)
+    mu, S, Y = random_nn_problem(rng, 3, 2)
+    with pytest.raises(ValueError, match="mu"):
+        nn_distance_table(mu[:, :1], S, Y)
+    with pytest.raises(ValueError, match="S must"):
+        nn_distance_table(mu, S[:2], Y)
+    with pytest.raises(ValueError, match="Y must"):
+        nn_distance_table(mu, S, Y[:1])
+    with pytest.raises(ValueError, match="positive definite"):
+        nn_distance_table(mu, -S, Y)
+    with pytest.raises(ValueError, match="gate"):
+        per_observation_nn(mu, S, Y, gate=0.0)
+    with pytest.raises(ValueError, match="block_pairs"):
+        per_observation_nn(mu, S, Y, block_pairs=0)
+    with pytest.raises(ValueError, match="rng"):
+        random_nn_problem(0, 3, 2)
+    with pytest.raises(ValueError, match="repeats"):
+        time_nn([1], [1], repeats=0)
+    with pytest.raises(ValueError, match="distinct"):
+        loglog_slope([1, 1], [1, 2])
