@@ -5,6 +5,10 @@ line at x = their index, kinematics factors (squares) between consecutive vertic
 (compass) and below (GPS) their vertex, landmark vertices in a top row above the mean index of the poses
 that observe them with a range-bearing factor on each link. Every element is read from ``system.graph``,
 so the picture is the real graph, not a sketch.
+
+``plot_wrapped_angle(ax, t, angle)`` draws a wrapped angle (heading in degrees or radians) as a line that is
+broken wherever it wraps round ±180° (|Δ| > half a turn between samples), so a wrap is a gap, not a vertical
+stroke across the whole axis; ``break_at_wraps`` returns the arrays with those gaps (NaN) inserted.
 """
 from __future__ import annotations
 
@@ -13,7 +17,7 @@ import numpy as np
 from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex
 from ..graph import EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing
 
-__all__ = ["draw_factor_graph", "plot_state_errors", "plot_covariances"]
+__all__ = ["draw_factor_graph", "plot_state_errors", "plot_covariances", "break_at_wraps", "plot_wrapped_angle"]
 
 _STYLE = {
     VehicleKinematicsEdge: ("kinematics edge (odometry)", "#1f77b4", 0.0),
@@ -105,7 +109,7 @@ def plot_state_errors(results, axes, n_sigma: float = 2.0, label: str | None = N
         ax.plot(t, -sig[i], color="#d62728", lw=0.8, ls="--")
         ax.set_ylabel(names[i])
     axes[-1].set_xlabel("time (s)")
-    axes[0].legend(loc="upper left")
+    axes[0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2)  # above the data, covering none of it
 
 
 def plot_covariances(results, axes, label: str | None = None) -> None:
@@ -118,3 +122,26 @@ def plot_covariances(results, axes, label: str | None = None) -> None:
         ax.plot(t, results.vehicle_covariance_history[i], lw=1.0, label=label)
         ax.set_ylabel(names[i])
     axes[-1].set_xlabel("time (s)")
+
+
+def break_at_wraps(t, angle, period: float = 360.0):
+    """(t, angle) with a NaN inserted between consecutive samples whose angles differ by more than period/2.
+
+    ``period`` is one full turn in the angle's unit (360 for degrees, 2π for radians). A wrapped angle jumps by
+    about one period where it crosses ±period/2; the NaN makes matplotlib break the line there.
+    """
+    t = np.asarray(t, dtype=float).reshape(-1)
+    angle = np.asarray(angle, dtype=float).reshape(-1)
+    if t.shape != angle.shape:
+        raise ValueError(f"t and angle must have the same length, got {t.size} and {angle.size}")
+    if isinstance(period, bool) or not isinstance(period, (int, float)) or not np.isfinite(period) or period <= 0:
+        raise ValueError(f"period must be a positive number (360 for degrees, 2π for radians), got {period!r}")
+    jumps = np.flatnonzero(np.abs(np.diff(angle)) > 0.5 * period) + 1
+    return np.insert(t, jumps, np.nan), np.insert(angle, jumps, np.nan)
+
+
+def plot_wrapped_angle(ax, t, angle, period: float = 360.0, **kwargs):
+    """Plot a wrapped angle against t on ``ax`` without vertical strokes at the wraps (see break_at_wraps)."""
+    _check_axes(ax, None)
+    tb, ab = break_at_wraps(t, angle, period)
+    return ax.plot(tb, ab, **kwargs)
