@@ -28,7 +28,7 @@ import numbers
 import numpy as np
 from scipy import linalg, special
 
-__all__ = ["Gaussian", "chi2inv", "normcdf", "confidence_level"]
+__all__ = ["Gaussian", "chi2inv", "chi2_interval", "normcdf", "confidence_level"]
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -57,6 +57,20 @@ def normcdf(w):
         raise ValueError(f"w must not be NaN, got {w!r}")
     out = special.ndtr(w_arr)
     return float(out) if out.ndim == 0 else out
+
+
+def chi2_interval(dof, probability: float = 0.99) -> tuple[float, float]:
+    """(lo, hi) with P(lo ≤ χ²_dof ≤ hi) = probability, equal tails: the (1 ∓ p)/2 quantiles of χ²_dof.
+
+    The acceptance interval of a consistent graph's χ² (dof = measurement dimensions − free state dimensions).
+    Unlike the Gaussian approximation dof ± k√(2 dof) it never goes negative and has the right skew.
+    """
+    if isinstance(dof, bool) or not isinstance(dof, numbers.Integral) or dof < 1:
+        raise ValueError(f"dof must be a positive integer, got {dof!r}")
+    if isinstance(probability, bool) or not isinstance(probability, numbers.Real) or not 0 < probability < 1:
+        raise ValueError(f"probability must lie in (0, 1), got {probability!r}")
+    tail = 0.5 * (1.0 - float(probability))
+    return chi2inv(tail, int(dof)), chi2inv(1.0 - tail, int(dof))
 
 
 def confidence_level(n_sigma) -> float:

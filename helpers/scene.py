@@ -19,8 +19,10 @@ Scene content (all on the plane z = 0 unless said otherwise)
 
 Rendering (for every pixel, no loop over pixels)
   1. pixel → ray: the camera model is inverted exactly (``Camera.pixel_to_vector``) on a coarse grid (every
-     8 px) and the normalised coordinates (x/z, y/z) are interpolated bicubically to every sub-pixel sample
-     — the map is smooth, so the interpolation error is far below 0.01 px;
+     16 px) and the normalised coordinates (x/z, y/z) are interpolated bicubically to every sub-pixel sample
+     — the map is smooth, so within 90 % of the lens model's largest image radius the interpolation error is
+     far below 0.01 px (``helpers.scene_truth.ray_interpolation_error``); pixels near the fold, where it
+     grows, are rendered dark;
   2. ray → plane: with Rnc = rpy2rot(Θnc) the ray d = Rnc [x/z, y/z, 1]ᵀ from rCNn meets z = z₀ at
      t = (z₀ − r_z)/d_z, point rCNn + t d;
   3. albedo at that point; each texture octave fades out when the pixel footprint on the plane (√|det| of
@@ -53,6 +55,8 @@ __all__ = [
     "render_lab_scene",
     "find_board_corners",
     "recover_pose",
+    "TEXTURE_WAVELENGTHS",
+    "fiducial_half_size",
     "ChessboardNotFoundError",
 ]
 
@@ -73,6 +77,8 @@ OCCLUDER_GREY = 0.55
 _OCTAVES = (0.0015, 0.003, 0.006, 0.012, 0.024, 0.048)   # wavelengths of the texture octaves, m
 _LATTICE = (257, 263, 269, 271, 277, 281)                 # periodic lattices (co-prime sizes)
 _GRID_STEP = 16                                           # px between exact pixel→ray inversions
+#: Wavelengths (m) of the six octaves of the fractal floor texture.
+TEXTURE_WAVELENGTHS = _OCTAVES
 
 
 class ChessboardNotFoundError(RuntimeError):
@@ -212,12 +218,9 @@ def _sharp_albedo(X, Y, Xc, Yc, background, plane_markers, occluders, occluder_h
 # ----------------------------------------------------------------------------------------------------
 # rendering
 # ----------------------------------------------------------------------------------------------------
-def _normalised_rays(camera, width, height):
-    """Undistorted normalised coordinates (x/z, y/z) at every pixel centre, (H, W) each.
-
-    The model is inverted exactly (Camera.pixel_to_vector) on nodes every _GRID_STEP px and interpolated
-    with a bicubic tensor spline, evaluated in floating point (no fixed-point remap). Also returns a mask
-    of the pixels beyond the fold of the lens model (no preimage: rendered black, like a lens hood)."""
+def _ray_splines(camera, width, height):
+    """Bicubic splines (row, column) ↦ x/z and ↦ y/z of the exact inverse lens model, fitted on nodes every
+    _GRID_STEP px (the model is inverted exactly there, by Camera.pixel_to_vector)."""
     g = _GRID_STEP
     us = np.arange(-2 * g, width + 3 * g, g, dtype=float)
     vs = np.arange(-2 * g, height + 3 * g, g, dtype=float)
@@ -225,9 +228,20 @@ def _normalised_rays(camera, width, height):
     rays = camera.pixel_to_vector(np.vstack([U.ravel(), V.ravel()]), strict=False)
     if np.any(rays[2] <= 0):
         raise ValueError("camera has pixels whose rays point backwards; cannot render this lens")
+    return (RectBivariateSpline(vs, us, (rays[0] / rays[2]).reshape(U.shape)),
+            RectBivariateSpline(vs, us, (rays[1] / rays[2]).reshape(U.shape)))
+
+
+def _normalised_rays(camera, width, height):
+    """Undistorted normalised coordinates (x/z, y/z) at every pixel centre, (H, W) each.
+
+    The model is inverted exactly (Camera.pixel_to_vector) on nodes every _GRID_STEP px and interpolated
+    with a bicubic tensor spline, evaluated in floating point (no fixed-point remap). Also returns a mask
+    of the pixels beyond the fold of the lens model (no preimage: rendered black, like a lens hood)."""
+    spline_x, spline_y = _ray_splines(camera, width, height)
     pu, pv = np.arange(width, dtype=float), np.arange(height, dtype=float)
-    xn = RectBivariateSpline(vs, us, (rays[0] / rays[2]).reshape(U.shape))(pv, pu)
-    yn = RectBivariateSpline(vs, us, (rays[1] / rays[2]).reshape(U.shape))(pv, pu)
+    xn = spline_x(pv, pu)
+    yn = spline_y(pv, pu)
     # beyond the fold: distorted radius larger than the largest radius the model can produce
     fx, fy, cx, cy = camera.K[0, 0], camera.K[1, 1], camera.K[0, 2], camera.K[1, 2]
     rf = getattr(camera, "fold_radius", np.inf)

@@ -43,7 +43,7 @@ def central_diff(f, x, h):
 
 
 # ---------------------------------------------------------------------------- calibration file
-def test_lab_camera_file_holds_spec_calibration(cam):
+def test_lab_camera_file_holds_reference_calibration(cam):
     np.testing.assert_array_equal(cam.K, [[FX, 0, CX], [0, FY, CY], [0, 0, 1]])
     np.testing.assert_array_equal(cam.dist_coeffs, DIST)
     assert cam.image_size == (1920, 1440)
@@ -155,7 +155,7 @@ def test_camera_pose_from_body_identity_mount(cam):
     np.testing.assert_allclose(cam.camera_pose_from_body(DEMO_POSE), DEMO_POSE, atol=1e-12)
 
 
-# ---------------------------------------------------------------------------- demo board points (spec §9.2)
+# ----------------------------------------------------- demo board points (reference pixels at the demo pose)
 @pytest.mark.parametrize("point, pixel", [
     ((0.0, 0.0, 0.0), (810.4, 824.4)), ((0.198, 0.132, 0.0), (1053.0, 477.3)),
     ((-0.022, -0.022, 0.0), (768.8, 865.2)), ((0.22, -0.022, 0.0), (786.2, 437.5)),

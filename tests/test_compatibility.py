@@ -90,7 +90,7 @@ def test_joint_compatibility_published(fx, idx, Yname, dname, surprisal):
     assert s == pytest.approx(surprisal, rel=1e-8)
 
 
-# Spec §8.2: recomputed from the printed fixture the surprisals are 10.1056675834 and 33.3948613328; the issue
+# Recomputed from the printed fixture the surprisals are 10.1056675834 and 33.3948613328; the issue
 # asks for agreement to 1e-9 relative, which holds against these (the published ones differ by fixture rounding).
 @pytest.mark.parametrize("idx, Yname, dname, surprisal", [
     ([1], "Y3", "density_1", 10.1056675834),

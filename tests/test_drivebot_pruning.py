@@ -108,6 +108,8 @@ def test_protect_landmarks_restores_first_edge():
     (lambda: pr.KeyframePruning(stride=0), "stride"),
     (lambda: pr.KeyframePruning(rate_threshold=-1.0), "rate_threshold"),
     (lambda: pr.AlternateVertexPruning(stride=1), "stride"),
+    (lambda: pr.KeyframePruning(window=4), "window must be odd"),
+    (lambda: pr.q3b_hook(stride=0), "stride"),
 ])
 def test_hook_constructor_bad_inputs(make, match):
     with pytest.raises(ValueError, match=match):
@@ -222,3 +224,10 @@ def test_hook_on_the_drivebot_system():
     assert np.bincount(t["vertex"]).max() == 1
     assert res.vehicle_in_graph.all()
     assert res.graph_statistics()["landmark_edges"] == len(t["edges"])
+
+
+def test_q3b_hook_is_a_fresh_keyframe_rule():
+    a, b = pr.q3b_hook(), pr.q3b_hook(stride=3, rate_threshold=0.1, window=7)
+    assert isinstance(a, pr.KeyframePruning) and a is not pr.q3b_hook()
+    assert (a.stride, a.rate_threshold, a.window) == (5, 0.05, 11)
+    assert (b.stride, b.rate_threshold, b.window) == (3, 0.1, 7) and b.calls == 0

@@ -166,3 +166,41 @@ def test_optimization_algorithm_reaches_the_same_optimum():
     assert b.system.optimization_algorithm == "lm-gtsam"
     assert b.final_chi2 == pytest.approx(a.final_chi2, rel=1e-6)
     np.testing.assert_allclose(b.vehicle_state_history, a.vehicle_state_history, atol=1e-5)
+
+
+# ---------------------------------------------------------------------------------------------- q3_b, run_variants
+def test_q3_b_runs_a_fresh_keyframe_hook_and_prunes_only_landmark_edges():
+    from helpers.drivebot import pruning
+    from helpers.drivebot.runner import question_setup
+    _, config, slam = question_setup("q3_b")
+    assert config.laser_detection_range == 30.0 and slam["optimization_period"] == 500
+    assert isinstance(slam["pre_optimization_hook"], pruning.KeyframePruning)
+    assert question_setup("q3_b")[2]["pre_optimization_hook"] is not slam["pre_optimization_hook"]   # fresh
+    own = pruning.KeepKPerVertex(2)
+    assert question_setup("q3_b", pre_optimization_hook=own)[2]["pre_optimization_hook"] is own
+    res = run_question("q3_b", maximum_step_number=520)
+    hook = res.system.pre_optimization_hook
+    st = res.graph_statistics()
+    assert hook.calls == 2 and hook.removed > 0
+    assert st["vehicle_vertices"] == 520 and st["edges_by_type"]["VehicleKinematicsEdge"] == 519
+    assert _within_chi2_rule(res)
+
+
+def test_run_variants_equals_separate_runs_and_keeps_going_after_a_failure():
+    from helpers.drivebot.runner import run_variants
+    variants = {"full": {}, "keep first": {"remove_prediction_edges": True, "keep_first_prediction_edge": True},
+                "remove all": {"remove_prediction_edges": True, "keep_first_prediction_edge": False}}
+    out = run_variants("q3_a", variants, seed=3, maximum_step_number=700)
+    assert list(out) == list(variants)
+    assert isinstance(out["remove all"], GaugeFreedomError)
+    for name in ("full", "keep first"):
+        alone = run_question("q3_a", seed=3, maximum_step_number=700, **variants[name])
+        shared = out[name]
+        np.testing.assert_array_equal(shared.vehicle_state_history, alone.vehicle_state_history)
+        np.testing.assert_array_equal(shared.vehicle_true_state_history, alone.vehicle_true_state_history)
+        np.testing.assert_array_equal(shared.chi2_history, alone.chi2_history)
+        assert shared.run_time > 0
+    with pytest.raises(ValueError, match="SLAM options"):
+        run_variants("q3_a", {"bad": {"laser_detection_range": 10.0}})
+    with pytest.raises(ValueError, match="non-empty dict"):
+        run_variants("q3_a", {})

@@ -1,4 +1,4 @@
-"""SNN data association (helpers.association.snn) on the lab's 13-feature fixture (spec §8) and edge cases."""
+"""SNN data association (helpers.association.snn) on the lab template's 13-feature fixture, and edge cases."""
 import numpy as np
 import pytest
 
@@ -319,4 +319,31 @@ def test_figure1_zoom_window_and_bad_inputs():
         plot_association(img.astype(float), res)
     with pytest.raises(ValueError, match="image_scale"):
         plot_association(img, res, image_scale=0.0)
+    plt.close("all")
+
+
+def test_figure1_truth_overlay_marks_wrong_pairings_and_has_a_legend():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from helpers.association.lab_demo import (FIGURE1_COLORS, association_demo, figure1_legend_handles,
+                                              ground_truth_check, plot_association)
+
+    camera, state, feats = demo_inputs()
+    res = association_demo(None, camera, state, features=feats, verbose=False)
+    moved = state.landmark_positions().copy()
+    moved[:, 2] += [0.0, 0.05, 0.0]                       # landmark 2's association becomes wrong
+    rows = ground_truth_check(res, camera, state.camera_pose(camera), moved)
+    fig, ax = plot_association(np.zeros((1440, 1920), np.uint8), res, truth=rows)
+    wrong_lines = [ln for ln in ax.lines if ln.get_linestyle() == "--"]
+    assert len(wrong_lines) == 1 and tuple(wrong_lines[0].get_color()) == FIGURE1_COLORS["wrong"]
+    np.testing.assert_allclose(wrong_lines[0].get_xydata()[1], rows[2]["true_pixel"])
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert len(labels) == 6 and any("true landmark" in t for t in labels)
+    # features are drawn below the landmark overlays
+    feature_line = next(ln for ln in ax.lines if ln.get_marker() == ".")
+    assert all(feature_line.get_zorder() < ln.get_zorder() for ln in ax.lines if ln is not feature_line)
+    assert len(figure1_legend_handles()) == 4
+    with pytest.raises(ValueError, match="truth"):
+        plot_association(np.zeros((1440, 1920), np.uint8), res, truth=[{"x": 1}])
     plt.close("all")

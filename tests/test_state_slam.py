@@ -6,7 +6,7 @@ from helpers.gaussian import Gaussian
 from helpers.rotation import rpy2rot
 from helpers.state_slam import LAB_DEMO_CAMERA_POSE, StateSLAM, lab_demo_state
 
-# spec §9.4: mean (x, y) px, σx, σy, correlation
+# reference values at the demo pose: mean (x, y) px, σx, σy, correlation
 REFERENCE = [
     ((997.66, 1185.61), 8.10, 6.81, -0.238), ((324.73, 807.68), 9.96, 8.51, 0.146),
     ((1685.50, 806.13), 7.89, 5.11, -0.081), ((1602.00, 308.80), 5.36, 4.75, -0.447),
@@ -50,7 +50,7 @@ def test_demo_state_layout(demo, cam):
 
 
 @pytest.mark.parametrize("j", range(9))
-def test_demo_single_landmark_densities_match_spec(demo, cam, j):
+def test_demo_single_landmark_densities_match_reference(demo, cam, j):
     (mx, my), sx, sy, corr = REFERENCE[j]
     g = demo.predict_feature_density(cam, j)
     np.testing.assert_allclose(g.mean, [mx, my], atol=0.05)

@@ -26,6 +26,7 @@ __all__ = [
     "association_demo",
     "ground_truth_check",
     "plot_association",
+    "figure1_legend_handles",
     "FIGURE1_COLORS",
 ]
 
@@ -41,6 +42,8 @@ FIGURE1_COLORS = {
     "associated": (0.0, 0.0, 1.0),           # blue '+', ellipse and label: landmark associated
     "unassociated": (1.0, 0.0, 0.0),         # bright red: landmark not associated
     "match": (0.0, 1.0, 0.0),                # green '×' on matched features
+    "truth": (0.0, 0.0, 0.0),                # workbook addition: black circle at a landmark's true pixel
+    "wrong": (1.0, 0.55, 0.0),               # workbook addition: orange dashes, wrong pairing → truth
 }
 
 
@@ -181,19 +184,9 @@ def ground_truth_check(result: AssociationResult, camera, true_pose, true_landma
     return rows
 
 
-def plot_association(image, result: AssociationResult, ax=None, n_sigma: float = 3.0, title: str | None = None,
-                     image_scale: float = 0.5, window=None):
-    """Figure 1 of the lab with matplotlib over the image.
-
-    All features: dark-red dots. Each selected landmark: '+' at the predicted mean and its 3σ ellipse
-    (100 points; segments drawn only where both ends are inside the image), blue if associated and
-    bright red if not, labelled with j at (μx + 20, μy − 20). Matched features: green '×'.
-    The image is shown resized by ``image_scale`` (the lab showed it at 0.5; coordinates stay full-size
-    pixels). ``window = (x0, x1, y0, y1)`` shows only that part of the image (a zoom; drawn at full size).
-    Returns (fig, ax).
-    """
+def _shown_image(image, image_scale, window):
+    """The image (or its window) to draw and its extent in full-size pixel coordinates; the view limits."""
     import cv2
-    import matplotlib.pyplot as plt
 
     image = np.asarray(image)
     if image.dtype != np.uint8 or image.ndim not in (2, 3):
@@ -202,51 +195,132 @@ def plot_association(image, result: AssociationResult, ax=None, n_sigma: float =
         raise ValueError(f"image_scale must lie in (0, 1], got {image_scale!r}")
     H, W = image.shape[:2]
     if window is None:
-        x0, x1, y0, y1 = -0.5, W - 0.5, -0.5, H - 0.5
         shown = image if image_scale == 1 else cv2.resize(image, None, fx=image_scale, fy=image_scale,
                                                           interpolation=cv2.INTER_AREA)
-    else:
-        x0, x1, y0, y1 = (float(v) for v in window)
-        if not (x0 < x1 and y0 < y1):
-            raise ValueError(f"window must be (x0, x1, y0, y1) with x0 < x1 and y0 < y1, got {window!r}")
-        c0, c1 = max(int(np.floor(x0 + 0.5)), 0), min(int(np.ceil(x1 + 0.5)), W)
-        r0, r1 = max(int(np.floor(y0 + 0.5)), 0), min(int(np.ceil(y1 + 0.5)), H)
-        if c0 >= c1 or r0 >= r1:
-            raise ValueError(f"window {window!r} does not overlap the image")
-        shown = image[r0:r1, c0:c1]
-    extent = (-0.5, W - 0.5, H - 0.5, -0.5) if window is None else (c0 - 0.5, c1 - 0.5, r1 - 0.5, r0 - 0.5)
+        return shown, (-0.5, W - 0.5, H - 0.5, -0.5), (-0.5, W - 0.5, -0.5, H - 0.5)
+    x0, x1, y0, y1 = (float(v) for v in window)
+    if not (x0 < x1 and y0 < y1):
+        raise ValueError(f"window must be (x0, x1, y0, y1) with x0 < x1 and y0 < y1, got {window!r}")
+    c0, c1 = max(int(np.floor(x0 + 0.5)), 0), min(int(np.ceil(x1 + 0.5)), W)
+    r0, r1 = max(int(np.floor(y0 + 0.5)), 0), min(int(np.ceil(y1 + 0.5)), H)
+    if c0 >= c1 or r0 >= r1:
+        raise ValueError(f"window {window!r} does not overlap the image")
+    return image[r0:r1, c0:c1], (c0 - 0.5, c1 - 0.5, r1 - 0.5, r0 - 0.5), (x0, x1, y0, y1)
+
+
+def _halo(width=3.0):
+    """A white outline under a line or marker, so it stays readable on dark and on light texture."""
+    import matplotlib.patheffects as pe
+
+    return [pe.withStroke(linewidth=width, foreground="white")]
+
+
+def _draw_landmark(ax, dens, j, colour, image_size, n_sigma):
+    """'+' at the predicted mean, the 3σ ellipse (segments with both ends inside the image) and the label."""
+    W, H = image_size
+    E = dens.confidence_ellipse(n_sigma, 100)
+    inside = (E[0] >= -0.5) & (E[0] <= W - 0.5) & (E[1] >= -0.5) & (E[1] <= H - 0.5)
+    seg_ok = inside[:-1] & inside[1:]
+    Ex, Ey = E[0].copy(), E[1].copy()
+    Ex[1:][~seg_ok], Ey[1:][~seg_ok] = np.nan, np.nan        # break the curve where a segment leaves the image
+    ax.plot(Ex, Ey, "-", color=colour, linewidth=1.6, zorder=4, path_effects=_halo(3.2))
+    mu = dens.mean
+    ax.plot(mu[0], mu[1], "+", color=colour, markersize=12, markeredgewidth=1.8, zorder=5, path_effects=_halo())
+    ax.text(mu[0] + 20, mu[1] - 20, str(j), color=colour, fontsize=11, fontweight="bold", clip_on=True, zorder=7,
+            path_effects=_halo(2.5))
+
+
+def _draw_truth(ax, rows, Y):
+    """True landmark pixels (hollow circles) and, for each wrong pairing, a dashed line from the chosen
+    feature to the truth."""
+    if not all(isinstance(r, dict) and {"true_pixel", "verdict", "associated"} <= r.keys() for r in rows):
+        raise ValueError("truth must be the list of rows returned by ground_truth_check")
+    for r in rows:
+        t = np.asarray(r["true_pixel"], dtype=float)
+        ax.plot(t[0], t[1], "o", mfc="none", mec=FIGURE1_COLORS["truth"], markersize=9, markeredgewidth=1.6,
+                zorder=6, path_effects=_halo())
+        if r["verdict"] == "wrong" and r["associated"] >= 0:
+            y = Y[:, r["associated"]]
+            ax.plot([y[0], t[0]], [y[1], t[1]], "--", color=FIGURE1_COLORS["wrong"], linewidth=2.0, zorder=6,
+                    path_effects=_halo())
+
+
+def figure1_legend_handles(truth: bool = False):
+    """Legend entries of :func:`plot_association` (Figure 1 conventions; with ``truth`` also the true
+    landmark pixel and the wrong-pairing line)."""
+    from matplotlib.lines import Line2D
+
+    c = FIGURE1_COLORS
+    handles = [
+        Line2D([], [], ls="none", marker=".", color=c["feature"], markersize=6, label="detected feature"),
+        Line2D([], [], color=c["associated"], marker="+", markersize=10, mew=1.8,
+               label="predicted landmark + 3σ region, associated"),
+        Line2D([], [], color=c["unassociated"], marker="+", markersize=10, mew=1.8,
+               label="predicted landmark + 3σ region, not associated"),
+        Line2D([], [], ls="none", marker="x", color=c["match"], markersize=9, mew=1.8,
+               label="feature associated with a landmark"),
+    ]
+    if truth:
+        handles += [
+            Line2D([], [], ls="none", marker="o", mfc="none", mec=c["truth"], markersize=9, mew=1.6,
+                   label="true landmark pixel (renderer)"),
+            Line2D([], [], ls="--", color=c["wrong"], lw=2.0, label="wrong pairing: chosen feature → truth"),
+        ]
+    return handles
+
+
+def plot_association(image, result: AssociationResult, ax=None, n_sigma: float = 3.0, title: str | None = None,
+                     image_scale: float = 0.5, window=None, truth=None, legend: bool = True):
+    """Figure 1 of the lab with matplotlib over the image.
+
+    All features: dark-red dots, drawn small and semi-transparent *under* everything else. Each selected
+    landmark: '+' at the predicted mean and its 3σ ellipse (100 points; segments drawn only where both ends
+    are inside the image), blue if associated and bright red if not, labelled with j at (μx + 20, μy − 20),
+    with a thin white outline so they stay visible on the texture. Matched features: green '×'.
+    ``truth``: rows of :func:`ground_truth_check` — adds the true landmark pixels (hollow circles) and a
+    dashed orange line from every wrongly chosen feature to the truth. ``legend``: a legend below the axes
+    (pass False in a grid and use :func:`figure1_legend_handles` for one figure legend).
+    The image is shown resized by ``image_scale`` (the lab showed it at 0.5; coordinates stay full-size
+    pixels). ``window = (x0, x1, y0, y1)`` shows only that part of the image (a zoom; drawn at full size).
+    Returns (fig, ax).
+    """
+    import matplotlib.pyplot as plt
+
+    shown, extent, (x0, x1, y0, y1) = _shown_image(image, image_scale, window)
+    H, W = np.asarray(image).shape[:2]
     if ax is None:
         fig, ax = plt.subplots(figsize=(9.6, 7.2))
     else:
         fig = ax.figure
-    if image.ndim == 2:
-        ax.imshow(shown, cmap="gray", vmin=0, vmax=255, extent=extent, interpolation="antialiased")
+    if shown.ndim == 2:
+        ax.imshow(shown, cmap="gray", vmin=0, vmax=255, extent=extent, interpolation="antialiased", zorder=0)
     else:
-        ax.imshow(shown[..., ::-1], extent=extent)                   # BGR → RGB
+        ax.imshow(shown[..., ::-1], extent=extent, zorder=0)               # BGR → RGB
     Y = result.features.Y
     vis = (Y[0] >= x0) & (Y[0] <= x1) & (Y[1] >= y0) & (Y[1] <= y1)
-    ax.plot(Y[0, vis], Y[1, vis], ".", color=FIGURE1_COLORS["feature"], markersize=2.0, linestyle="none")
+    zoom = window is not None
+    ax.plot(Y[0, vis], Y[1, vis], ".", color=FIGURE1_COLORS["feature"], markersize=4.0 if zoom else 2.4,
+            alpha=0.85 if zoom else 0.55, markeredgewidth=0, linestyle="none", zorder=1)
     for k, (j, i) in enumerate(zip(result.idx_landmarks, result.idx)):
         colour = FIGURE1_COLORS["associated" if i >= 0 else "unassociated"]
-        dens = result.landmark_density(k)
-        E = dens.confidence_ellipse(n_sigma, 100)
-        inside = (E[0] >= -0.5) & (E[0] <= W - 0.5) & (E[1] >= -0.5) & (E[1] <= H - 0.5)
-        seg_ok = inside[:-1] & inside[1:]
-        Ex, Ey = E[0].copy(), E[1].copy()
-        # break the curve wherever a segment has an end outside the image
-        Ex[1:][~seg_ok], Ey[1:][~seg_ok] = np.nan, np.nan
-        ax.plot(Ex, Ey, "-", color=colour, linewidth=1.5)
-        mu = dens.mean
-        ax.plot(mu[0], mu[1], "+", color=colour, markersize=12, markeredgewidth=1.5)
-        ax.text(mu[0] + 20, mu[1] - 20, str(j), color=colour, fontsize=11, fontweight="bold", clip_on=True)
+        _draw_landmark(ax, result.landmark_density(k), j, colour, (W, H), n_sigma)
         if i >= 0:
-            ax.plot(Y[0, i], Y[1, i], "x", color=FIGURE1_COLORS["match"], markersize=12, markeredgewidth=1.5)
+            ax.plot(Y[0, i], Y[1, i], "x", color=FIGURE1_COLORS["match"], markersize=11, markeredgewidth=2.0,
+                    zorder=5, path_effects=_halo())
+    if truth is not None:
+        _draw_truth(ax, truth, Y)
     ax.set_xlim(x0, x1)
     ax.set_ylim(y1, y0)
     ax.set_aspect("equal")
     ax.grid(False)
-    ax.set_xticks([])
-    ax.set_yticks([])
+    if zoom:                                        # a zoom window: its size is given by the caller's title
+        ax.set_xticks([])
+        ax.set_yticks([])
+    else:
+        ax.set(xlabel="x [px]", ylabel="y [px]")
     if title:
         ax.set_title(title)
+    if legend:
+        ax.legend(handles=figure1_legend_handles(truth is not None), loc="upper center",
+                  bbox_to_anchor=(0.5, -0.01), ncol=2, fontsize=8, frameon=False)
     return fig, ax

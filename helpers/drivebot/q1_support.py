@@ -18,19 +18,9 @@ import numbers
 
 import numpy as np
 
-from ..gaussian import chi2inv
+from ..gaussian import chi2_interval  # re-exported: the notebooks import it from here
 
 __all__ = ["chi2_interval", "OnlineEstimate", "fraction_inside", "jacobian_error"]
-
-
-def chi2_interval(dof, probability: float = 0.99) -> tuple[float, float]:
-    """(lo, hi) with P(lo ≤ χ²_dof ≤ hi) = probability, equal tails: the (1∓p)/2 quantiles of χ²_dof."""
-    if isinstance(dof, bool) or not isinstance(dof, numbers.Integral) or dof < 1:
-        raise ValueError(f"dof must be a positive integer, got {dof!r}")
-    if isinstance(probability, bool) or not isinstance(probability, numbers.Real) or not 0 < probability < 1:
-        raise ValueError(f"probability must lie in (0, 1), got {probability!r}")
-    tail = 0.5 * (1.0 - float(probability))
-    return chi2inv(tail, int(dof)), chi2inv(1.0 - tail, int(dof))
 
 
 class OnlineEstimate:

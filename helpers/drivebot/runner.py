@@ -24,6 +24,12 @@ Per-question settings (from the coursework launcher scripts; every one can be ov
 | q2_d     | q2_d      | laser, perturb_with_noise=False, maximum_step_number=2000           | None   | 1313 |
 | q2_e     | large_map | laser                                                               | None   | 5667 |
 | q3_a     | q3_a      | laser range 30, remove_prediction_edges=False, keep_first=True      | 500    | 5273 |
+| q3_b     | q3_a      | as q3_a (prediction edges kept) + pruning.q3b_hook() before every   | 500    | 5273 |
+|          |           | optimisation (keyframes on straights, stride 5)                     |        |      |
+
+q3_b is the coursework's student-written script for Q3b(ii): the q3_a scenario and settings, with the graph
+pruned before every optimisation by a *fresh* ``pruning.q3b_hook()`` per run (hooks count their calls and
+edges removed). Pass ``pre_optimization_hook=`` to run another heuristic with the same settings.
 """
 from __future__ import annotations
 
@@ -34,12 +40,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm import tqdm
 
+from . import pruning
+from ..gaussian import chi2_interval, confidence_level
+from ..graph import GraphError
 from .config import SimulatorConfiguration
 from .scenarios import Scenario, load_scenario
 from .simulator import DriveBotSimulator, make_rng
 from .slam_system import DriveBotSLAMSystem
 
-__all__ = ["Results", "run", "run_question", "QUESTIONS", "SLAM_OPTIONS", "question_setup"]
+__all__ = ["Results", "run", "run_question", "run_variants", "QUESTIONS", "SLAM_OPTIONS", "question_setup"]
 
 #: SLAM-system options accepted by run / run_question (everything else must be a SimulatorConfiguration field).
 SLAM_OPTIONS = ("optimization_period", "compass_edge", "remove_prediction_edges", "keep_first_prediction_edge",
@@ -58,7 +67,14 @@ QUESTIONS = {
     "q2_e": ("large_map", {"enable_laser": True}, {"optimization_period": None}),
     "q3_a": ("q3_a", {"enable_laser": True, "laser_detection_range": 30.0},
              {"optimization_period": 500, "remove_prediction_edges": False, "keep_first_prediction_edge": True}),
+    # Q3b: the q3_b script — q3_a's scenario and sensors, prediction edges kept, observations pruned before
+    # every optimisation by a fresh pruning.q3b_hook() (see _HOOK_FACTORIES).
+    "q3_b": ("q3_a", {"enable_laser": True, "laser_detection_range": 30.0},
+             {"optimization_period": 500, "remove_prediction_edges": False}),
 }
+
+#: Q3b: questions whose runs get a fresh pre-optimisation hook (unless one is passed as an override).
+_HOOK_FACTORIES = {"q3_b": pruning.q3b_hook}
 
 
 @dataclass
@@ -74,6 +90,7 @@ class Results:
     vehicle_in_graph (N,) bool       False for vertices deleted from the graph (Q3a/Q3b); their state and
                                      covariance columns are NaN so that plots show gaps, not spikes
     system                           the final DriveBotSLAMSystem (``system.graph`` is the optimiser)
+    run_time                         wall time of the whole run (s; machine-dependent)
     """
 
     question: str
@@ -116,10 +133,13 @@ class Results:
         return self.system.landmark_estimates()
 
     def chi2_bounds(self, k: float = 4.0) -> tuple[float, float]:
-        """dof ± k·√(2·dof) with dof = measurement dimensions − free state dimensions."""
+        """The "k-sigma" acceptance interval of χ²: the central interval of χ²_dof holding probability
+        2Φ(k) − 1 (0.99994 for k = 4), from the χ² quantiles; dof = measurement dimensions − free state
+        dimensions ((0, 0) when dof < 1: a graph without redundancy fits exactly)."""
         dof = self.graph_statistics()["dof"]
-        half = k * math.sqrt(2.0 * max(dof, 0))
-        return dof - half, dof + half
+        if dof < 1:
+            return 0.0, 0.0
+        return chi2_interval(int(dof), confidence_level(k))
 
 
 def question_setup(name: str, **overrides):
@@ -137,11 +157,13 @@ def question_setup(name: str, **overrides):
         else:
             raise ValueError(f"unknown override {key!r} for run_question; SLAM options: {list(SLAM_OPTIONS)}; "
                              f"SimulatorConfiguration fields: {list(fields)}")
+    if name in _HOOK_FACTORIES and "pre_optimization_hook" not in overrides:
+        slam["pre_optimization_hook"] = _HOOK_FACTORIES[name]()   # Q3b: a new hook object for every run
     return load_scenario(scenario_name), SimulatorConfiguration(**cfg), slam
 
 
 def run_question(name: str, seed=0, progress: bool = False, step_hook=None, **overrides) -> Results:
-    """Run a coursework question ("q1_b" … "q3_a") with its settings (module table) and ``overrides``.
+    """Run a coursework question ("q1_b" … "q3_b") with its settings (module table) and ``overrides``.
 
     Overrides are SimulatorConfiguration fields (``enable_compass=True``, ``perturb_with_noise=False``, …)
     or SLAM options (``optimization_period``, ``compass_edge``, ``remove_prediction_edges``,
@@ -159,46 +181,108 @@ def run(config: SimulatorConfiguration, scenario: Scenario, seed=0, progress: bo
     """The main loop (module docstring) for any configuration and scenario (``step_hook``: see run_question)."""
     if step_hook is not None and not callable(step_hook):
         raise ValueError(f"step_hook must be callable(system, k) or None, got {step_hook!r}")
+    return _main_loop(config, scenario, seed, {"": slam_options}, progress, question, step_hook, catch=False)[""]
+
+
+def run_variants(name: str, variants: dict, seed=0, progress: bool = False, **overrides) -> dict:
+    """Run several SLAM-system variants of one question on **one** simulator pass: {variant: Results}.
+
+    ``variants`` maps a name to that variant's SLAM options (e.g. ``{"full": {}, "keep first":
+    {"remove_prediction_edges": True}}``); ``overrides`` (configuration fields or SLAM options) apply to all.
+    Every system receives the same event batches, as in the coursework's main loop (which can drive several
+    SLAM systems), so the results equal separate ``run_question`` calls with the same seed while the
+    simulation runs once. A variant whose system raises a GraphError (e.g. a gauge failure) maps to that
+    exception instead of a Results; the others carry on. ``run_time`` of each Results is the simulator's time
+    plus that system's own.
+    """
+    if not isinstance(variants, dict) or not variants:
+        raise ValueError("variants must be a non-empty dict {name: {SLAM option: value}}")
+    slams = {}
+    for vname, opts in variants.items():
+        if not isinstance(opts, dict) or any(k not in SLAM_OPTIONS for k in opts):
+            raise ValueError(f"variant {vname!r}: options must be a dict of SLAM options {list(SLAM_OPTIONS)}, "
+                             f"got {opts!r}")
+        scenario, config, slams[vname] = question_setup(name, **overrides, **opts)
+    return _main_loop(config, scenario, seed, slams, progress, name, None, catch=True)
+
+
+def _main_loop(config, scenario, seed, slams, progress, question, step_hook, catch):
+    """The loop of the module docstring for one simulator and the SLAM systems ``slams`` {name: options}."""
     rng = make_rng(seed)
     sim = DriveBotSimulator(config, scenario, seed=rng)
-    system = DriveBotSLAMSystem(config, **slam_options)
+    systems = {n: DriveBotSLAMSystem(config, **opts) for n, opts in slams.items()}
+    rec = {n: {"times": [], "iters": [], "chi2_t": [], "chi2_h": [], "last": False, "wall": 0.0} for n in systems}
+    failed = {}
+    true_t, true_x = [], []
     t_start = _time.perf_counter()
-    opt_times, opt_iters, true_t, true_x = [], [], [], []
-    chi2_t, chi2_h = [], []
     sim.start()
     total = None if math.isinf(config.maximum_step_number) else int(config.maximum_step_number)
-    last_optimised = False
     with tqdm(total=total, disable=not progress, desc=question or "drivebot", unit="step") as bar:
         while sim.keep_running():
-            system.process_events(sim.events())
-            last_optimised = system.recommend_optimization()
-            if last_optimised:
-                t0 = _time.perf_counter()
-                chi2 = system.optimize()
-                opt_times.append(_time.perf_counter() - t0)
-                opt_iters.append(system.graph.iterations)
-                chi2_t.append(sim.time)
-                chi2_h.append(chi2)
-            else:
-                opt_times.append(np.nan)
-                opt_iters.append(0)
+            events = sim.events()
+            for n, system in systems.items():
+                if n in failed:
+                    continue
+                t_sys = _time.perf_counter()
+                try:
+                    _tick(system, events, rec[n], sim.time)
+                except GraphError as err:
+                    if not catch:
+                        raise
+                    failed[n] = err
+                rec[n]["wall"] += _time.perf_counter() - t_sys
             true_t.append(sim.time)
             true_x.append(sim.ground_truth())
             if step_hook is not None:
-                step_hook(system, len(true_t) - 1)
+                step_hook(systems[""], len(true_t) - 1)
             sim.step()
             bar.update(1)
-    if not last_optimised:
+    shared = _time.perf_counter() - t_start - sum(r["wall"] for r in rec.values())
+    out = dict(failed)
+    for n, system in systems.items():
+        if n in failed:
+            continue
+        t_sys = _time.perf_counter()
+        try:
+            out[n] = _finish(system, rec[n], true_t, true_x, question, config, scenario)
+        except GraphError as err:
+            if not catch:
+                raise
+            out[n] = err
+            continue
+        out[n].run_time = shared + rec[n]["wall"] + _time.perf_counter() - t_sys
+    return {n: out[n] for n in slams}
+
+
+def _tick(system, events, rec, time):
+    """One tick of one SLAM system: process the batch; optimise (timed) when recommended."""
+    system.process_events(events)
+    rec["last"] = system.recommend_optimization()
+    if rec["last"]:
+        t0 = _time.perf_counter()
+        chi2 = system.optimize()
+        rec["times"].append(_time.perf_counter() - t0)
+        rec["iters"].append(system.graph.iterations)
+        rec["chi2_t"].append(time)
+        rec["chi2_h"].append(chi2)
+    else:
+        rec["times"].append(np.nan)
+        rec["iters"].append(0)
+
+
+def _finish(system, rec, true_t, true_x, question, config, scenario) -> Results:
+    """End of run: the final optimisation if the last tick did not optimise, then the smoothed histories."""
+    if not rec["last"]:
         t0 = _time.perf_counter()
         chi2 = system.optimize(20)
-        opt_times[-1] = _time.perf_counter() - t0
-        opt_iters[-1] = system.graph.iterations
-        chi2_t.append(true_t[-1])
-        chi2_h.append(chi2)
+        rec["times"][-1] = _time.perf_counter() - t0
+        rec["iters"][-1] = system.graph.iterations
+        rec["chi2_t"].append(true_t[-1])
+        rec["chi2_h"].append(chi2)
     T, X, P, in_graph = system.platform_estimate_history()
     return Results(question=question, config=config, scenario=scenario,
-                   optimization_times=np.array(opt_times), chi2_time=np.array(chi2_t),
-                   chi2_history=np.array(chi2_h), vehicle_true_state_time=np.array(true_t),
+                   optimization_times=np.array(rec["times"]), chi2_time=np.array(rec["chi2_t"]),
+                   chi2_history=np.array(rec["chi2_h"]), vehicle_true_state_time=np.array(true_t),
                    vehicle_true_state_history=np.array(true_x).T, vehicle_state_time=T,
                    vehicle_state_history=X, vehicle_covariance_history=P, vehicle_in_graph=in_graph,
-                   system=system, optimization_iterations=np.array(opt_iters, dtype=np.int64), run_time=_time.perf_counter() - t_start)
+                   system=system, optimization_iterations=np.array(rec["iters"], dtype=np.int64))

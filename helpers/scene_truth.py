@@ -1,0 +1,61 @@
+"""Ground truth of the rendered lab scene: from a pixel back to the scene, the fiducials, and how exact the
+renderer's pixel→ray interpolation is.
+
+    P = pixel_to_plane(camera, pose, pixel, z0)       # where the pixel's ray meets the plane z = z0
+    half = fiducial_half_size(marker)                  # half-size of the white square of a fiducial
+    err = ray_interpolation_error(camera)              # px, interpolated rays vs the exact lens model
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from helpers.rotation import rpy2rot
+from helpers.scene import CARD_HALF, STICKER_HALF, _check_camera, _check_pose, _ray_splines
+
+__all__ = ["pixel_to_plane", "fiducial_half_size", "ray_interpolation_error"]
+
+
+def pixel_to_plane(camera, pose, pixels, z0: float = 0.0) -> np.ndarray:
+    """World point(s) where the ray(s) of pixel(s) ((2,) or (2, N)) from the camera at ``pose`` = [rCNn; Θnc]
+    meet the plane z = ``z0``: rCNn + t Rnc v with v = camera.pixel_to_vector(pixel) and
+    t = (z0 − r_z)/(Rnc v)_z. Rays that never reach the plane (t ≤ 0) give NaN. Returns (3,) or (3, N)."""
+    _check_camera(camera)
+    pose = _check_pose(pose)
+    if not np.isfinite(z0):
+        raise ValueError(f"z0 must be a finite plane height in metres, got {z0!r}")
+    V = camera.pixel_to_vector(pixels, strict=False)
+    d = rpy2rot(pose[3:]) @ V
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (z0 - pose[2]) / d[2]
+    t = np.where(t > 0, t, np.nan)
+    return pose[:3].reshape((3,) + (1,) * (d.ndim - 1)) + t * d
+
+
+def fiducial_half_size(marker) -> float:
+    """Half-size (m) of the white square that carries the checker of a fiducial at world point ``marker``:
+    a sticker on the plane (z = 0) or a floating card (z < 0)."""
+    marker = np.asarray(marker, dtype=float)
+    if marker.shape != (3,) or not np.all(np.isfinite(marker)):
+        raise ValueError(f"marker must be a finite world point of shape (3,), got shape {marker.shape}")
+    return STICKER_HALF if marker[2] == 0.0 else CARD_HALF
+
+
+def ray_interpolation_error(camera, n_samples: int = 2000, seed: int = 0, inside: float = 0.9) -> float:
+    """Largest pixel error of the renderer's interpolated rays: at ``n_samples`` random sub-pixel positions
+    (seeded) whose distorted radius is below ``inside`` × the largest radius the lens model produces, the
+    interpolated ray is projected back with the exact model and compared with the pixel. Returns px."""
+    _check_camera(camera)
+    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 1:
+        raise ValueError(f"n_samples must be a positive integer, got {n_samples!r}")
+    if not (np.isfinite(inside) and 0 < inside <= 1):
+        raise ValueError(f"inside must lie in (0, 1], got {inside!r}")
+    W, H = camera.image_size
+    fx, fy, cx, cy = camera.K[0, 0], camera.K[1, 1], camera.K[0, 2], camera.K[1, 2]
+    rf = getattr(camera, "fold_radius", np.inf)
+    rd_max = np.hypot(*camera.distort(rf, 0.0)) if np.isfinite(rf) else np.inf
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform([0.0, 0.0], [W - 1.0, H - 1.0], size=(4 * n_samples, 2)).T
+    pts = pts[:, np.hypot((pts[0] - cx) / fx, (pts[1] - cy) / fy) < inside * rd_max][:, :n_samples]
+    spline_x, spline_y = _ray_splines(camera, W, H)
+    rays = np.vstack([spline_x.ev(pts[1], pts[0]), spline_y.ev(pts[1], pts[0]), np.ones(pts.shape[1])])
+    return float(np.abs(camera.vector_to_pixel(rays) - pts).max())
