@@ -23,8 +23,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from helpers.association.nearest_neighbour import mahalanobis_nn
-from helpers.gaussian import Gaussian
+from .nearest_neighbour import mahalanobis_nn
+from ..gaussian import Gaussian
+from ..validation import integer, positive_number
 
 __all__ = ["ConfirmationSequence", "Track", "confirmation_sequence", "confirm_landmarks"]
 
@@ -65,16 +66,8 @@ class Track:
         return int(vals[np.argmax(counts)])
 
 
-def _int(value, name, lo):
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < lo:
-        raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
-    return int(value)
 
 
-def _pos(value, name):
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return float(value)
 
 
 def confirmation_sequence(seed, n_frames: int = 10, n_landmarks: int = 14, n_known: int = 8,
@@ -83,13 +76,14 @@ def confirmation_sequence(seed, n_frames: int = 10, n_landmarks: int = 14, n_kno
     """Draw the sequence (see the module docstring). Landmarks are uniform in the strip swept by the
     sensor (x in [−2, (n_frames − 1)·step + 2] m, |y| ≤ 4 m); the first ``n_known`` are in the map."""
     rng = np.random.default_rng(seed)
-    n_frames = _int(n_frames, "n_frames", 1)
-    n_landmarks = _int(n_landmarks, "n_landmarks", 1)
-    n_known = _int(n_known, "n_known", 0)
+    n_frames = integer(n_frames, "n_frames", 1)
+    n_landmarks = integer(n_landmarks, "n_landmarks", 1)
+    n_known = integer(n_known, "n_known", 0)
     if n_known > n_landmarks:
         raise ValueError(f"n_known must be <= n_landmarks = {n_landmarks}, got {n_known}")
-    n_clutter = _int(n_clutter, "n_clutter", 0)
-    max_range, step, meas_sigma = _pos(max_range, "max_range"), _pos(step, "step"), _pos(meas_sigma, "meas_sigma")
+    n_clutter = integer(n_clutter, "n_clutter", 0)
+    max_range = positive_number(max_range, "max_range")
+    step, meas_sigma = positive_number(step, "step"), positive_number(meas_sigma, "meas_sigma")
     if isinstance(p_detect, bool) or not isinstance(p_detect, numbers.Real) or not 0.0 <= p_detect <= 1.0:
         raise ValueError(f"p_detect must be a probability in [0, 1], got {p_detect!r}")
     robot = np.column_stack([step * np.arange(n_frames), np.zeros(n_frames)])
@@ -130,8 +124,8 @@ def confirm_landmarks(seq: ConfirmationSequence, n_confirm: int = 3, n_miss: int
     of the final map the landmark it came from (known landmarks first, then confirmed tracks; a confirmed
     clutter track has source −1). ``n_confirm = 1`` adds every unexplained observation at once.
     """
-    n_confirm = _int(n_confirm, "n_confirm", 1)
-    n_miss = _int(n_miss, "n_miss", 1)
+    n_confirm = integer(n_confirm, "n_confirm", 1)
+    n_miss = integer(n_miss, "n_miss", 1)
     R = seq.meas_sigma ** 2 * np.eye(2)
     map_mean = [p for p in seq.landmarks[seq.known]]
     map_cov = [R.copy() for _ in map_mean]                  # map landmarks: known to about σ

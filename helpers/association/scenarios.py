@@ -37,7 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from helpers.gaussian import Gaussian
+from ..gaussian import Gaussian
+from ..validation import positive_number
 
 __all__ = ["Scenario", "observe_points", "range_bearing_scenario", "lab_camera_scenario",
            "DEFAULT_POSE_CORRELATION"]
@@ -132,10 +133,6 @@ def observe_points(pose, landmarks):
     return z, J_pose, R.T.copy()
 
 
-def _positive(value, name):
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return float(value)
 
 
 def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size: float = 30.0,
@@ -156,19 +153,19 @@ def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size:
     for name, value, lo in (("n_landmarks", n_landmarks, 1), ("n_clutter", n_clutter, 0)):
         if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < lo:
             raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
-    size = _positive(size, "size")
-    landmark_sigma = _positive(landmark_sigma, "landmark_sigma")
-    meas_sigma = _positive(meas_sigma, "meas_sigma")
+    size = positive_number(size, "size")
+    landmark_sigma = positive_number(landmark_sigma, "landmark_sigma")
+    meas_sigma = positive_number(meas_sigma, "meas_sigma")
     if n_visible is None:
         if max_range is None:
             raise ValueError("give n_visible or max_range")
-        max_range = _positive(max_range, "max_range")
+        max_range = positive_number(max_range, "max_range")
     elif isinstance(n_visible, bool) or not isinstance(n_visible, numbers.Integral) or not 1 <= n_visible <= n_landmarks:
         raise ValueError(f"n_visible must be an integer in [1, n_landmarks={n_landmarks}] or None, got {n_visible!r}")
     if isinstance(p_detect, bool) or not isinstance(p_detect, numbers.Real) or not 0.0 <= p_detect <= 1.0:
         raise ValueError(f"p_detect must be a probability in [0, 1], got {p_detect!r}")
     if candidate_range is not None:
-        candidate_range = _positive(candidate_range, "candidate_range")
+        candidate_range = positive_number(candidate_range, "candidate_range")
     sig = np.asarray(pose_sigma, dtype=float)
     if sig.shape != (3,) or not np.all(np.isfinite(sig)) or np.any(sig <= 0):
         raise ValueError(f"pose_sigma must be three positive numbers (σx, σy, σθ), got {pose_sigma!r}")
@@ -262,7 +259,7 @@ def lab_camera_scenario(seed=None, rng=None, *, n_clutter: int = 1000, p_detect:
         raise ValueError(f"n_clutter must be an integer >= 0, got {n_clutter!r}")
     if isinstance(p_detect, bool) or not isinstance(p_detect, numbers.Real) or not 0.0 <= p_detect <= 1.0:
         raise ValueError(f"p_detect must be a probability in [0, 1], got {p_detect!r}")
-    pixel_sigma = _positive(pixel_sigma, "pixel_sigma")
+    pixel_sigma = positive_number(pixel_sigma, "pixel_sigma")
     camera, state = _lab_scene()
     n = state.number_landmarks
     sel = np.arange(n)

@@ -36,6 +36,7 @@ import numbers
 import numpy as np
 
 from ..graph.angles import wrap_angle
+from ..validation import int_array, integer, positive_number
 
 __all__ = ["keep_k_per_group", "straight_segment_mask", "stride_mask", "protect_landmarks",
            "landmark_edge_table", "PruningHook", "KeepKPerVertex", "KeyframePruning",
@@ -45,25 +46,10 @@ __all__ = ["keep_k_per_group", "straight_segment_mask", "stride_mask", "protect_
 # ----------------------------------------------------------------------------------------------------
 # validation
 # ----------------------------------------------------------------------------------------------------
-def _int_array(a, name):
-    arr = np.asarray(a)
-    if arr.ndim != 1:
-        raise ValueError(f"{name} must be a 1-D integer array, got shape {arr.shape}")
-    if arr.size and (arr.dtype == bool or not np.issubdtype(arr.dtype, np.integer)):
-        raise ValueError(f"{name} must contain integers, got dtype {arr.dtype}")
-    return arr.astype(np.int64)
 
 
-def _positive_int(value, name, minimum=1):
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
-        raise ValueError(f"{name} must be an integer ≥ {minimum}, got {value!r}")
-    return int(value)
 
 
-def _positive_float(value, name):
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return float(value)
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -76,8 +62,8 @@ def keep_k_per_group(group, k, rng) -> np.ndarray:
     lowest keys are kept. Groups with ≤ k items keep everything, so applying the rule again to its own
     output removes nothing (idempotent). Vectorised: one lexsort, ranks from group starts.
     """
-    group = _int_array(group, "group")
-    k = _positive_int(k, "k", minimum=0)
+    group = int_array(group, "group")
+    k = integer(k, "k", minimum=0)
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
     n = group.size
@@ -97,8 +83,8 @@ def keep_k_per_group(group, k, rng) -> np.ndarray:
 
 def stride_mask(index, stride, offset=0) -> np.ndarray:
     """True where ``(index − offset) % stride == 0`` (the vertices that keep their landmark edges)."""
-    index = _int_array(index, "index")
-    stride = _positive_int(stride, "stride")
+    index = int_array(index, "index")
+    stride = integer(stride, "stride", minimum=1)
     if isinstance(offset, bool) or not isinstance(offset, numbers.Integral):
         raise ValueError(f"offset must be an integer, got {offset!r}")
     return (index - int(offset)) % stride == 0
@@ -120,8 +106,8 @@ def straight_segment_mask(headings, dt, rate_threshold=0.05, window=11) -> np.nd
         else np.asarray(dt, dtype=float)
     if dt.shape != (max(n - 1, 0),) or np.any(~np.isfinite(dt)) or np.any(dt <= 0):
         raise ValueError(f"dt must be a positive scalar or an array of shape ({max(n - 1, 0)},)")
-    rate_threshold = _positive_float(rate_threshold, "rate_threshold")
-    window = _positive_int(window, "window")
+    rate_threshold = positive_number(rate_threshold, "rate_threshold")
+    window = integer(window, "window", minimum=1)
     if window % 2 == 0:
         raise ValueError(f"window must be odd, got {window}")
     if n < 2:
@@ -144,7 +130,7 @@ def protect_landmarks(keep, landmark) -> np.ndarray:
     dropped gets its earliest edge back, so the graph's orphan rule never deletes a landmark vertex.
     """
     keep = np.asarray(keep)
-    landmark = _int_array(landmark, "landmark")
+    landmark = int_array(landmark, "landmark")
     if keep.dtype != bool or keep.shape != landmark.shape:
         raise ValueError(f"keep must be a boolean array of shape {landmark.shape}, got {keep.dtype} {keep.shape}")
     out = keep.copy()
@@ -246,7 +232,7 @@ class KeepKPerVertex(PruningHook):
 
     def __init__(self, k=2, seed=0):
         super().__init__()
-        self.k = _positive_int(k, "k")
+        self.k = integer(k, "k", minimum=1)
         self.rng = np.random.default_rng(seed)
 
     def select(self, table):
@@ -264,9 +250,9 @@ class KeyframePruning(PruningHook):
 
     def __init__(self, stride=5, rate_threshold=0.05, window=11):
         super().__init__()
-        self.stride = _positive_int(stride, "stride")
-        self.rate_threshold = _positive_float(rate_threshold, "rate_threshold")
-        self.window = _positive_int(window, "window")
+        self.stride = integer(stride, "stride", minimum=1)
+        self.rate_threshold = positive_number(rate_threshold, "rate_threshold")
+        self.window = integer(window, "window", minimum=1)
         if self.window % 2 == 0:
             raise ValueError(f"window must be odd, got {window}")
 
@@ -304,7 +290,7 @@ class AlternateVertexPruning(PruningHook):
 
     def __init__(self, stride=2):
         super().__init__()
-        self.stride = _positive_int(stride, "stride", minimum=2)
+        self.stride = integer(stride, "stride", minimum=2)
 
     def select(self, table):
         return stride_mask(table["vertex"], self.stride)

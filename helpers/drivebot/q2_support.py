@@ -18,29 +18,22 @@ import numbers
 
 import numpy as np
 
+from ..validation import int_array, integer
+
 __all__ = ["no_observation_intervals", "interval_mask", "shade_intervals", "landmark_facts", "OnlineRecorder",
            "mean_rate", "waypoint_ticks"]
 
 
-def _int_array(x, name):
-    x = np.asarray(x)
-    if x.ndim != 1 or (x.size and not np.issubdtype(x.dtype, np.integer)):
-        raise ValueError(f"{name} must be a 1-D integer array, got dtype {x.dtype} shape {x.shape}")
-    return x.astype(np.int64)
 
 
-def _positive_int(v, name):
-    if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v <= 0:
-        raise ValueError(f"{name} must be a positive integer, got {v!r}")
-    return int(v)
 
 
 def no_observation_intervals(tick, n_steps, min_ticks=2) -> np.ndarray:
     """Inclusive [first, last] tick ranges (K, 2) of at least ``min_ticks`` consecutive ticks without any
     landmark observation, among ticks 0 … n_steps − 1. ``tick`` (E,) is the tick of every observation."""
-    tick = _int_array(tick, "tick")
-    n_steps = _positive_int(n_steps, "n_steps")
-    min_ticks = _positive_int(min_ticks, "min_ticks")
+    tick = int_array(tick, "tick")
+    n_steps = integer(n_steps, "n_steps", minimum=1)
+    min_ticks = integer(min_ticks, "min_ticks", minimum=1)
     if tick.size and (tick.min() < 0 or tick.max() >= n_steps):
         raise ValueError(f"tick values must lie in [0, n_steps) = [0, {n_steps}), got [{tick.min()}, {tick.max()}]")
     empty = np.ones(n_steps, dtype=np.int8)
@@ -54,7 +47,7 @@ def no_observation_intervals(tick, n_steps, min_ticks=2) -> np.ndarray:
 
 def interval_mask(ticks, intervals) -> np.ndarray:
     """Boolean mask: which of ``ticks`` lie inside one of the inclusive ``intervals`` (K, 2)."""
-    ticks = _int_array(ticks, "ticks")
+    ticks = int_array(ticks, "ticks")
     iv = np.asarray(intervals)
     if iv.size == 0:
         return np.zeros(ticks.shape, bool)
@@ -81,8 +74,8 @@ def landmark_facts(results, tick, landmark) -> dict:
     Returns arrays {"id", "xy" (L, 2), "corner" (L, 2) nearest route corner (start or waypoint),
     "corner_distance", "n_obs", "first_tick", "last_tick", "mean_speed"} — mean_speed is the vehicle's mean
     true speed (m/s) over the ticks at which it observed the landmark."""
-    tick = _int_array(tick, "tick")
-    landmark = _int_array(landmark, "landmark")
+    tick = int_array(tick, "tick")
+    landmark = int_array(landmark, "landmark")
     if tick.shape != landmark.shape:
         raise ValueError(f"tick and landmark must have the same shape, got {tick.shape} and {landmark.shape}")
     sc = results.scenario
@@ -121,7 +114,7 @@ class OnlineRecorder:
     """
 
     def __init__(self, every=10):
-        self.every = _positive_int(every, "every")
+        self.every = integer(every, "every", minimum=1)
         self._ticks, self._var = [], []
         self.factor_nnz = {}
 
