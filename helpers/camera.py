@@ -1,4 +1,5 @@
-"""The calibrated camera: OpenCV's 12-coefficient distortion model, its Jacobians, FOV and file I/O.
+"""The calibrated camera: OpenCV's 12-coefficient distortion model, its Jacobians and FOV (file I/O:
+``helpers.camera_io``).
 
 Model (course Lab 7/8; identical to ``cv2.projectPoints`` with the RATIONAL + THIN_PRISM model, no tilt).
 For a point rPCc = [x, y, z] in the camera frame {c} (z along the optical axis, x right, y down):
@@ -38,6 +39,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .camera_io import read_camera_xml, write_camera_xml
 from .paths import data_dir
 from .rotation import rot2rpy, rpy2rot, rpy2rot_derivatives
 
@@ -167,46 +169,13 @@ class Camera:
         fx, fy, cx, cy = self.K[0, 0], self.K[1, 1], self.K[0, 2], self.K[1, 2]
         return f"Camera(fx={fx:.3f}, fy={fy:.3f}, cx={cx:.3f}, cy={cy:.3f}, image_size={self.image_size})"
 
-    # -- file I/O ----------------------------------------------------------------------------------------
+    # -- file I/O (helpers.camera_io) ---------------------------------------------------------------------
     @classmethod
     def from_xml(cls, path) -> "Camera":
         """Read an OpenCV FileStorage file with a map ``camera`` holding ``camera_matrix`` (3×3),
         ``distortion_coefficients`` (12×1), ``flags`` (int) and ``imageSize`` (2 ints: width height)."""
-        import cv2
-
         path = Path(path)
-        if not path.is_file():
-            raise ValueError(f"path: camera file {path} does not exist")
-        try:
-            fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-        except (cv2.error, SystemError) as exc:  # OpenCV's parser raises cv2.error (wrapped in SystemError)
-            raise ValueError(f"path: {path} is not a readable OpenCV FileStorage file "
-                             f"({type(exc).__name__})") from None
-        try:
-            if not fs.isOpened():
-                raise ValueError(f"path: {path} is not a readable OpenCV FileStorage file")
-            node = fs.getNode("camera")
-            if node.empty() or not node.isMap():
-                raise ValueError(f"{path}: missing map node 'camera'")
-
-            def matrix(name, shape):
-                m = node.getNode(name).mat()
-                if m is None or np.asarray(m).shape not in shape:
-                    raise ValueError(f"{path}: node 'camera/{name}' must be an opencv-matrix of shape {shape[0]}")
-                return np.asarray(m, dtype=float)
-
-            K = matrix("camera_matrix", [(3, 3)])
-            d = matrix("distortion_coefficients", [(12, 1), (1, 12), (12,)])
-            fl = node.getNode("flags")
-            if fl.empty() or not fl.isInt():
-                raise ValueError(f"{path}: node 'camera/flags' must be an integer")
-            flags = int(fl.real())
-            sz = node.getNode("imageSize")
-            if sz.empty() or not sz.isSeq() or sz.size() != 2 or not all(sz.at(k).isInt() for k in range(2)):
-                raise ValueError(f"{path}: node 'camera/imageSize' must be a sequence of 2 integers (width height)")
-            image_size = (int(sz.at(0).real()), int(sz.at(1).real()))
-        finally:
-            fs.release()
+        K, d, image_size, flags = read_camera_xml(path)
         try:
             return cls(K, d, image_size, flags=flags)
         except ValueError as exc:
@@ -214,21 +183,7 @@ class Camera:
 
     def to_xml(self, path) -> None:
         """Write the calibration in the format read by :meth:`from_xml` (the body mounting is not stored)."""
-        import cv2
-
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
-        if not fs.isOpened():
-            raise ValueError(f"path: cannot open {path} for writing")
-        fs.startWriteStruct("camera", cv2.FileNode_MAP)
-        fs.write("camera_matrix", self.K)
-        fs.write("distortion_coefficients", self.dist_coeffs.reshape(12, 1))
-        fs.write("flags", self.flags)
-        fs.startWriteStruct("imageSize", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
-        fs.write("", self.width)
-        fs.write("", self.height)
-        fs.endWriteStruct()
-        fs.endWriteStruct()
-        fs.release()
+        write_camera_xml(path, self.K, self.dist_coeffs, self.image_size, self.flags)
 
     # -- the distortion model in normalised coordinates ---------------------------------------------------
     def _distort(self, u, v, jacobian: bool):

@@ -29,42 +29,15 @@ import pathlib
 
 import numpy as np
 
-from .graph import (EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2, wrap_angle)
-from .graph.edge import BaseEdge
+from .graph import (EdgeRangeBearing, EdgeSE2, EdgeSE2PointXY, SparseOptimizer, VertexPointXY, VertexSE2,
+                    wrap_angle)
 from .paths import data_path
 
 __all__ = ["GraphData", "read_toro", "read_g2o", "read_victoria_park", "dataset_path", "load_dataset",
-           "build_optimizer", "EdgeSE2PointXY", "pose_arrays", "DATASETS"]
+           "build_optimizer", "pose_arrays", "DATASETS"]
 
 DATASETS = {"w100": "w100.graph.gz", "w10000": "w10000.graph.gz", "victoria_park": "victoria_park.txt.gz",
             "example": "example.graph.gz"}
-
-
-class EdgeSE2PointXY(BaseEdge):
-    """Point observed in the frame of a pose (g2o EDGE_SE2_XY): e = R(ψ)ᵀ(m − t) − z.
-
-    J_x = [−R(ψ)ᵀ | [q_y, −q_x]ᵀ] with q = R(ψ)ᵀ(m − t);  J_m = R(ψ)ᵀ.
-    """
-
-    vertex_types = (VertexSE2, VertexPointXY)
-    measurement_dimension = 2
-
-    @staticmethod
-    def evaluate(states, z, params, jacobians=True):
-        x, m = states
-        c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
-        dx, dy = m[:, 0] - x[:, 0], m[:, 1] - x[:, 1]
-        qx, qy = c * dx + s * dy, -s * dx + c * dy
-        e = np.stack([qx - z[:, 0], qy - z[:, 1]], axis=1)
-        if not jacobians:
-            return e, None
-        n = len(z)
-        jm = np.empty((n, 2, 2))
-        jm[:, 0, 0], jm[:, 0, 1], jm[:, 1, 0], jm[:, 1, 1] = c, s, -s, c
-        jx = np.zeros((n, 2, 3))
-        jx[:, :, :2] = -jm
-        jx[:, 0, 2], jx[:, 1, 2] = qy, -qx
-        return e, [jx, jm]
 
 
 class GraphData:

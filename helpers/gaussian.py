@@ -28,7 +28,9 @@ import numbers
 import numpy as np
 from scipy import linalg, special
 
-__all__ = ["Gaussian", "chi2inv", "chi2_interval", "normcdf", "confidence_level"]
+from .validation import finite_vector, index_list
+
+__all__ = ["Gaussian", "chi2inv", "chi2_interval", "normcdf", "confidence_level", "square_r_factor"]
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -88,17 +90,6 @@ def _check_n_sigma(n_sigma):
 # ----------------------------------------------------------------------------------------------------
 # validation helpers
 # ----------------------------------------------------------------------------------------------------
-def _as_vector(x, name, n=None):
-    x = np.asarray(x, dtype=float)
-    if x.ndim != 1:
-        raise ValueError(f"{name} must be a 1-D array, got shape {x.shape}")
-    if n is not None and x.shape[0] != n:
-        raise ValueError(f"{name} must have shape ({n},), got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError(f"{name} must be finite (no NaN/inf)")
-    return x
-
-
 def _as_upper(S, name, n=None):
     S = np.array(S, dtype=float)  # copy: a Gaussian owns its square root
     if S.ndim != 2 or S.shape[0] != S.shape[1]:
@@ -114,35 +105,17 @@ def _as_upper(S, name, n=None):
     return np.triu(S)
 
 
-def _as_index(idx, n, name):
-    arr = np.asarray(idx)
-    if arr.ndim == 0:
-        arr = arr.reshape(1)
-    if arr.ndim != 1 or arr.size == 0:
-        raise ValueError(f"{name} must be a non-empty 1-D list of indices, got shape {arr.shape}")
-    if arr.dtype == bool or not np.issubdtype(arr.dtype, np.integer):
-        if np.issubdtype(arr.dtype, np.floating) and np.all(np.isfinite(arr)) and np.all(arr == np.round(arr)):
-            arr = arr.astype(np.intp)
-        else:
-            raise ValueError(f"{name} must contain integer indices, got dtype {arr.dtype}")
-    if np.any(arr < 0) or np.any(arr >= n):
-        raise ValueError(f"{name} has an index out of range [0, {n}): {arr.tolist()}")
-    return arr.astype(np.intp)
-
-
-def _top_rows(R, k):
-    """Top k rows of the QR factor R (shape (min(r, k), k)), zero-padded to (k, k)."""
+def square_r_factor(A) -> np.ndarray:
+    """The k × k upper-triangular R with AᵀA = RᵀR for A of shape (r, k): the top k rows of A's QR factor,
+    zero-padded when r < k (r = 0 gives zeros). The one QR step behind marginal, conditional and transform."""
+    k = A.shape[1]
     out = np.zeros((k, k))
+    if A.shape[0] == 0:
+        return out
+    R = np.triu(np.linalg.qr(A, mode="r"))
     rows = min(R.shape[0], k)
     out[:rows] = R[:rows]
     return out
-
-
-def _qr_r(A):
-    """R factor of A = QR (economic, shape (min(rows, cols), cols), exactly upper-triangular)."""
-    if A.shape[0] == 0:
-        return np.zeros((0, A.shape[1]))
-    return np.triu(np.linalg.qr(A, mode="r"))
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -160,7 +133,7 @@ class Gaussian:
     __slots__ = ("_mu", "_S")
 
     def __init__(self, mu, S):
-        mu = _as_vector(mu, "mu")
+        mu = finite_vector(mu, "mu")
         if mu.size == 0:
             raise ValueError("mu must have at least one element")
         self._mu = mu.copy()
@@ -178,7 +151,7 @@ class Gaussian:
     @classmethod
     def from_cov(cls, mu, P) -> "Gaussian":
         """N(μ, P) from a dense covariance: S = Lᵀ with P = L Lᵀ (Cholesky). P must be symmetric PD."""
-        mu = _as_vector(mu, "mu")
+        mu = finite_vector(mu, "mu")
         P = np.asarray(P, dtype=float)
         if P.shape != (mu.size, mu.size):
             raise ValueError(f"P must have shape ({mu.size}, {mu.size}), got {P.shape}")
@@ -227,20 +200,18 @@ class Gaussian:
     # -- structural operations -------------------------------------------------------------------------
     def marginal(self, idx) -> "Gaussian":
         """Marginal of the components ``idx`` (any order, non-contiguous allowed): QR of S[:, idx]."""
-        idx = _as_index(idx, self.size, "idx")
-        R = _qr_r(self._S[:, idx])
-        return Gaussian(self._mu[idx], _top_rows(R, idx.size))
+        idx = index_list(idx, self.size, "idx", integral_floats=True)
+        return Gaussian(self._mu[idx], square_r_factor(self._S[:, idx]))
 
     def conditional(self, idx_a, idx_b, x_b) -> "Gaussian":
         """p(x_A | x_B = x_b) by QR of [S[:, B], S[:, A]] (Lab 5 eqs 23–26). A and B must be disjoint."""
-        idx_a = _as_index(idx_a, self.size, "idx_a")
-        idx_b = _as_index(idx_b, self.size, "idx_b")
+        idx_a = index_list(idx_a, self.size, "idx_a", integral_floats=True)
+        idx_b = index_list(idx_b, self.size, "idx_b", integral_floats=True)
         if np.intersect1d(idx_a, idx_b).size:
             raise ValueError("idx_a and idx_b must be disjoint")
-        x_b = _as_vector(x_b, "x_b", idx_b.size)
-        na, nb = idx_a.size, idx_b.size
-        R = _qr_r(np.hstack([self._S[:, idx_b], self._S[:, idx_a]]))
-        R = _top_rows(R, na + nb)
+        x_b = finite_vector(x_b, "x_b", idx_b.size)
+        nb = idx_b.size
+        R = square_r_factor(np.hstack([self._S[:, idx_b], self._S[:, idx_a]]))
         R1, R2, R3 = R[:nb, :nb], R[:nb, nb:], R[nb:, nb:]
         if np.any(np.diag(R1) == 0):
             raise ValueError("the marginal of idx_b is singular; cannot condition on x_b")
@@ -258,7 +229,7 @@ class Gaussian:
         out = h(self._mu.copy())
         if not isinstance(out, tuple) or len(out) != 2:
             raise ValueError("h must return a tuple (y, J)")
-        y = _as_vector(out[0], "h(x)[0] (y)")
+        y = finite_vector(out[0], "h(x)[0] (y)")
         m = y.size
         J = np.asarray(out[1], dtype=float)
         if J.shape != (m, self.size):
@@ -274,7 +245,7 @@ class Gaussian:
             if np.any(noise._mu != 0):
                 raise ValueError("noise must have zero mean")
             A = np.vstack([A, noise._S])
-        return Gaussian(y, _top_rows(_qr_r(A), m))
+        return Gaussian(y, square_r_factor(A))
 
     # -- densities ---------------------------------------------------------------------------------------
     def _check_nonsingular(self):

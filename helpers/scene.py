@@ -42,8 +42,8 @@ import cv2
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
-from helpers.rotation import rot2rpy, rpy2rot
-from helpers.state_slam import LAB_DEMO_CAMERA_POSE, lab_demo_state
+from .rotation import rot2rpy, rpy2rot
+from .state_slam import LAB_DEMO_CAMERA_POSE, lab_demo_state
 
 __all__ = [
     "REFERENCE_POSE",

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from helpers.rotation import rpy2rot
-from helpers.scene import CARD_HALF, STICKER_HALF, _check_camera, _check_pose, _ray_splines
+from .rotation import rpy2rot
+from .scene import CARD_HALF, STICKER_HALF, _check_camera, _check_pose, _ray_splines
 
 __all__ = ["pixel_to_plane", "fiducial_half_size", "ray_interpolation_error"]
 

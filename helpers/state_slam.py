@@ -25,6 +25,7 @@ import numpy as np
 from .camera import Camera
 from .gaussian import Gaussian
 from .rotation import rot2rpy, rpy2rot
+from .validation import index_list
 
 __all__ = ["StateSLAM", "lab_demo_state", "LAB_DEMO_CAMERA_POSE"]
 
@@ -79,17 +80,7 @@ class StateSLAM:
         return self._density.mean[12:].reshape(-1, 3).T
 
     def _landmark_selection(self, idx_landmarks, name="idx_landmarks") -> np.ndarray:
-        arr = np.asarray(idx_landmarks)
-        if arr.ndim == 0:
-            arr = arr.reshape(1)
-        if arr.ndim != 1 or arr.size == 0:
-            raise ValueError(f"{name} must be a non-empty 1-D list of landmark indices, got shape {arr.shape}")
-        if arr.dtype == bool or not np.issubdtype(arr.dtype, np.integer):
-            raise ValueError(f"{name} must contain integer landmark indices, got dtype {arr.dtype}")
-        if np.any(arr < 0) or np.any(arr >= self.number_landmarks):
-            raise ValueError(f"{name} has a landmark index out of range [0, {self.number_landmarks}): "
-                             f"{arr.tolist()}")
-        return arr.astype(np.intp)
+        return index_list(idx_landmarks, self.number_landmarks, name, kind="landmark ")
 
     def _check_x(self, x):
         if x is None:

@@ -300,3 +300,17 @@ def test_distort_public_and_bad_input(cam):
     np.testing.assert_allclose([cam.K[0, 0] * ud[0] + cam.K[0, 2], cam.K[1, 1] * vd[0] + cam.K[1, 2]], q, rtol=1e-14)
     with pytest.raises(ValueError, match="u and v must be finite"):
         cam.distort(np.nan, 0.0)
+
+
+def test_camera_io_reads_and_writes_the_raw_values(tmp_path):
+    from helpers.camera_io import read_camera_xml, write_camera_xml
+
+    K, d, size, flags = read_camera_xml(data_dir() / "test_camera.xml")
+    assert K.shape == (3, 3) and d.size == 12 and len(size) == 2 and isinstance(flags, int)
+    write_camera_xml(tmp_path / "c.xml", K, d, size, flags)
+    K2, d2, size2, flags2 = read_camera_xml(tmp_path / "c.xml")
+    np.testing.assert_array_equal(K2, K)
+    np.testing.assert_array_equal(d2.ravel(), d.ravel())
+    assert (size2, flags2) == (size, flags)
+    with pytest.raises(ValueError, match="does not exist"):
+        read_camera_xml(tmp_path / "missing.xml")

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from helpers import datasets
-from helpers.graph import EdgeRangeBearing, EdgeSE2, VertexPointXY, VertexSE2
+from helpers.graph import EdgeRangeBearing, EdgeSE2, EdgeSE2PointXY, VertexPointXY, VertexSE2
 from helpers.paths import data_path
 
 
@@ -106,6 +106,8 @@ def test_g2o_reader(tmp_path):
     assert opt.chi2() == pytest.approx(0.0, abs=1e-20)
     opt.initialize_optimization()
     assert opt.optimize(5) == pytest.approx(0.0, abs=1e-20)
+    assert sorted(type(e).__name__ for e in opt.edges()) == ["EdgeSE2", "EdgeSE2PointXY"]
+    assert any(isinstance(e, EdgeSE2PointXY) for e in opt.edges())  # the graph package's class
 
 
 @pytest.mark.parametrize("text, message", [

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from helpers.drivebot import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex
 from helpers.drivebot.edges import FixedCompassEdge, GPSEdge, predict
-from helpers.graph import SparseOptimizer, VertexSE2
+from helpers.graph import SparseOptimizer, VertexSE2, wrap_angle
 
 
 def _numeric_jacobians(cls, states, z, params, eps=1e-6):
@@ -127,3 +127,34 @@ def test_vertices_in_a_graph_and_bad_input():
 def test_predict_bad_input(x, u, dt):
     with pytest.raises(ValueError):
         predict(x, u, dt)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_kinematics_kernel_equals_numpy_reference(seed):
+    """The compiled fast path (what the optimiser calls) and the readable numpy model give the same numbers."""
+    rng = np.random.default_rng(seed)
+    n = 5000
+    xk, xn = _random_poses(rng, n), _random_poses(rng, n)
+    xn[:10, 2] = wrap_angle(xk[:10, 2] + math.pi)          # Δψ on the ±π cut
+    u, dt = rng.normal(size=(n, 3)), rng.uniform(0.01, 0.5, n)
+    for jacobians in (True, False):
+        e, jac = VehicleKinematicsEdge.evaluate([xk, xn], u, {"dt": dt}, jacobians)
+        e_ref, jac_ref = VehicleKinematicsEdge.evaluate_reference([xk, xn], u, {"dt": dt}, jacobians)
+        np.testing.assert_allclose(e, e_ref, rtol=1e-12, atol=1e-12)
+        assert (jac is None) == (jac_ref is None) == (not jacobians)
+        for j, j_ref in zip(jac or [], jac_ref or [], strict=True):
+            np.testing.assert_allclose(j, j_ref, rtol=1e-12, atol=1e-12)
+
+
+def test_kinematics_reference_jacobians_central_differences():
+    rng = np.random.default_rng(9)
+    xk, dt = _random_poses(rng, 9), rng.uniform(0.05, 0.5, 9)
+    u = rng.normal(size=(9, 3))
+    xn = predict(xk, u + rng.normal(0, 0.5, (9, 3)), dt)
+
+    class Reference(VehicleKinematicsEdge):
+        evaluate = staticmethod(VehicleKinematicsEdge.evaluate_reference)
+
+    _, J = Reference.evaluate([xk, xn], u, {"dt": dt})
+    for a, b in zip(J, _numeric_jacobians(Reference, [xk, xn], u, {"dt": dt}), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)

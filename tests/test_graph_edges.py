@@ -4,9 +4,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from helpers.datasets import EdgeSE2PointXY
 from helpers.graph import (EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
-                           EdgeSE2Prior, VertexPointXY, VertexSE2, wrap_angle)
+                           EdgeSE2PointXY, EdgeSE2Prior, VertexPointXY, VertexSE2, batch_matrix, wrap_angle)
 
 
 def _central_difference(cls, states, z, params, h=1e-6):
@@ -128,16 +127,47 @@ def test_per_object_error_uses_vectorised_model():
     assert e.chi2() == pytest.approx(float(ref[0] @ np.diag([1, 2, 3]) @ ref[0]))
 
 
+_EXAMPLE_START, _EXAMPLE_END = "    class VehicleKinematicsEdge(BaseEdge):", "    edge = VehicleKinematicsEdge("
+
+
+def _docstring_example(marker, end):
+    import helpers.graph as hg
+
+    doc = hg.__doc__
+    start = doc.index(marker)
+    source = "\n".join(line[4:] for line in doc[start:doc.index(end, start)].splitlines())
+    namespace = {"BaseEdge": hg.BaseEdge, "VertexSE2": VertexSE2, "np": np, "wrap_angle": wrap_angle,
+                 "batch_matrix": batch_matrix}
+    exec(source, namespace)
+    return source, namespace
+
+
+def _code_lines(text):
+    return [line.strip() for line in text.splitlines() if line.strip() and not line.strip().startswith("#")]
+
+
+def test_protocol_example_is_the_real_kinematics_edge():
+    """The docstring's example edge is the shipped numpy model, line for line (comments aside)."""
+    import inspect
+
+    from helpers.drivebot import VehicleKinematicsEdge
+
+    source, namespace = _docstring_example(_EXAMPLE_START, _EXAMPLE_END)
+    example = namespace["VehicleKinematicsEdge"]
+    for name in ("vertex_types", "measurement_dimension", "parameters"):
+        assert getattr(example, name) == getattr(VehicleKinematicsEdge, name)
+    real = inspect.getsource(VehicleKinematicsEdge.evaluate_reference)
+    ours = source[source.index("    @staticmethod"):]
+    assert _code_lines(ours)[0] == _code_lines(real)[0] == "@staticmethod"
+    assert _code_lines(ours)[1] == "def evaluate(states, z, params, jacobians=True):"      # the name differs
+    assert _code_lines(ours)[2:] == _code_lines(real)[2:]
+
+
 def test_protocol_example_from_the_package_docstring():
     """The DriveBot kinematics edge written exactly as in helpers.graph's docstring works and is correct."""
     import helpers.graph as hg
 
-    doc = hg.__doc__
-    start = doc.index("    class VehicleKinematicsEdge(BaseEdge):")
-    end = doc.index("    edge = VehicleKinematicsEdge(")
-    source = "\n".join(line[4:] for line in doc[start:end].splitlines())
-    namespace = {"BaseEdge": hg.BaseEdge, "VertexSE2": VertexSE2, "np": np, "wrap_angle": wrap_angle}
-    exec(source, namespace)
+    _, namespace = _docstring_example(_EXAMPLE_START, _EXAMPLE_END)
     cls = namespace["VehicleKinematicsEdge"]
     rng = np.random.default_rng(21)
     states = [_poses(rng, 30), _poses(rng, 30)]

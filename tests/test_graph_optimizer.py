@@ -374,7 +374,8 @@ def test_pose_graph_marginals_equal_dense_inverse(pose_class):
 def test_ldl_solver_and_sparse_inverse_against_dense():
     """qdldl factorisation (permutation convention included): solve and the Takahashi entries equal dense algebra;
     an indefinite or singular matrix is reported (ok False, NaN solution); a refactorisation reuses the solver."""
-    from helpers.graph.linear import HessianPattern, LDLSolver, sparse_inverse_on_pattern
+    from helpers.graph.linear import HessianPattern, LDLSolver
+    from helpers.graph.marginals import sparse_inverse_on_pattern
     rng = np.random.default_rng(3)
     n = 30
     pairs = np.array([(i, j) for i in range(n) for j in range(i, n) if i == j or rng.random() < 0.12])

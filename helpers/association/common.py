@@ -28,8 +28,9 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from helpers.association.compatibility import individual_compatibility_matrix
-from helpers.gaussian import Gaussian, chi2inv, confidence_level
+from .compatibility import individual_compatibility_matrix
+from ..gaussian import Gaussian, chi2inv, confidence_level
+from ..validation import integer
 
 __all__ = ["Association", "AssociationProblem", "prepare", "joint_sq_mahalanobis", "empty_association"]
 
@@ -122,11 +123,8 @@ class AssociationProblem:
 
 
 def _check_int(value, name, minimum=0, allow_none=False):
-    if value is None and allow_none:
-        return None
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}{' or None' if allow_none else ''}, got {value!r}")
-    return int(value)
+    """``validation.integer`` with the association modules' default minimum 0 (the name jcbb imports)."""
+    return integer(value, name, minimum=minimum, allow_none=allow_none)
 
 
 def prepare(density, Y, n_sigma: float = 3.0) -> AssociationProblem:

@@ -18,14 +18,15 @@ with nothing associated s = n·s_U and the (empty) association is vacuously comp
 from __future__ import annotations
 
 import json
-import numbers
 
 import numpy as np
 
 from ..paths import data_dir
 from ..gaussian import Gaussian, chi2inv, confidence_level
+from ..validation import feature_columns, finite_number, integer
 
 __all__ = [
+    "check_bundle_density",
     "individual_compatibility",
     "individual_compatibility_matrix",
     "landmark_marginals",
@@ -35,42 +36,30 @@ __all__ = [
 ]
 
 
-def _check_density(density) -> int:
+def check_bundle_density(density, allow_empty: bool = True) -> int:
+    """The number n of landmarks in a feature-bundle density (a ``Gaussian`` of even size 2n); anything else
+    raises ValueError naming ``density``. ``allow_empty=False`` also rejects n = 0."""
     if not isinstance(density, Gaussian):
-        raise ValueError(f"density must be a Gaussian, got {type(density).__name__}")
-    if density.size % 2:
-        raise ValueError(f"density must have even size 2·n_landmarks, got size {density.size}")
+        raise ValueError(f"density must be a Gaussian (helpers.gaussian.Gaussian), got {type(density).__name__}")
+    if density.size % 2 or (density.size == 0 and not allow_empty):
+        least = "" if allow_empty else " ≥ 2"
+        raise ValueError(f"density must have even size 2·n_landmarks{least}, got size {density.size}")
     return density.size // 2
-
-
-def _check_Y(Y) -> np.ndarray:
-    Y = np.asarray(Y, dtype=float)
-    if Y.ndim != 2 or Y.shape[0] != 2 or Y.shape[1] == 0:
-        raise ValueError(f"Y must have shape (2, m) with m >= 1 features as columns, got {Y.shape}")
-    if not np.all(np.isfinite(Y)):
-        raise ValueError("Y must be finite (no NaN/inf)")
-    return Y
-
-
-def _check_int(value, name, upper):
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= value < upper:
-        raise ValueError(f"{name} must be an integer in [0, {upper}), got {value!r}")
-    return int(value)
 
 
 def individual_compatibility(i, j, Y, density: Gaussian, n_sigma: float = 3.0) -> bool:
     """Whether feature i (column of Y) is individually compatible with selected landmark j (eq 12)."""
-    n = _check_density(density)
-    Y = _check_Y(Y)
-    i = _check_int(i, "i", Y.shape[1])
-    j = _check_int(j, "j", n)
+    n = check_bundle_density(density)
+    Y = feature_columns(Y, allow_empty=False)
+    i = integer(i, "i", minimum=0, below=Y.shape[1])
+    j = integer(j, "j", minimum=0, below=n)
     return density.marginal([2 * j, 2 * j + 1]).is_within_confidence_region(Y[:, i], n_sigma)
 
 
 def landmark_marginals(density: Gaussian):
     """All n 2 × 2 landmark marginals at once: (μ (n, 2), S (n, 2, 2) upper-triangular), from one batched
     QR of the column pairs S[:, [2j, 2j+1]] (the same factor ``density.marginal([2j, 2j+1])`` gives)."""
-    n = _check_density(density)
+    n = check_bundle_density(density)
     S = density.sqrt_cov
     blocks = S.reshape(S.shape[0], n, 2).transpose(1, 0, 2)  # (n, 2n, 2)
     R = np.triu(np.linalg.qr(blocks, mode="r"))[:, :2, :2]
@@ -83,7 +72,7 @@ def individual_compatibility_matrix(Y, density: Gaussian, n_sigma: float = 3.0):
     Returns ``(d2, compatible)``, both (m, n): d2[i, j] = w_ijᵀ w_ij, compatible = d2 ≤ χ²_2(c).
     Vectorised: one batched QR for the n marginals, closed-form 2 × 2 triangular solves for all m·n pairs.
     """
-    Y = _check_Y(Y)
+    Y = feature_columns(Y, allow_empty=False)
     mu, S = landmark_marginals(density)
     a, b, c = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
     if np.any(a == 0) or np.any(c == 0):
@@ -112,8 +101,8 @@ def joint_compatibility(idx, sU, Y, density: Gaussian, n_sigma: float = 3.0):
     Returns ``(compatible, surprisal)`` with surprisal = n_U·sU − log N(y_A; μ_A, P_A); if nothing is
     associated, ``(True, n·sU)``.
     """
-    n = _check_density(density)
-    Y = _check_Y(Y)
+    n = check_bundle_density(density)
+    Y = feature_columns(Y, allow_empty=False)
     idx_arr = np.asarray(idx)
     if idx_arr.ndim != 1 or idx_arr.size != n:
         raise ValueError(f"idx must have one entry per landmark (length {n}), got shape {idx_arr.shape}")
@@ -121,8 +110,7 @@ def joint_compatibility(idx, sU, Y, density: Gaussian, n_sigma: float = 3.0):
         raise ValueError(f"idx must contain integers (feature index or -1), got dtype {idx_arr.dtype}")
     if np.any(idx_arr < -1) or np.any(idx_arr >= Y.shape[1]):
         raise ValueError(f"idx entries must be -1 or a feature index in [0, {Y.shape[1]}): {idx_arr.tolist()}")
-    if isinstance(sU, bool) or not isinstance(sU, numbers.Real) or not np.isfinite(sU):
-        raise ValueError(f"sU must be a finite number, got {sU!r}")
+    sU = finite_number(sU, "sU")
     associated = np.flatnonzero(idx_arr >= 0)
     nA = associated.size
     nU = n - nA

@@ -23,14 +23,14 @@ scene over several values (with a cache, so a setting shared by several sweeps r
 from __future__ import annotations
 
 import numbers
-import time
 from dataclasses import dataclass, field
 from typing import Callable, Mapping
 
 import numpy as np
 from scipy.stats import norm
 
-from helpers.association.scenarios import range_bearing_scenario
+from .scenarios import range_bearing_scenario
+from ..timing import best_of
 
 __all__ = ["score", "score_many", "run_trials", "TrialResults", "RATES", "wilson_interval", "sweep",
            "sweep_table"]
@@ -191,11 +191,7 @@ def run_trials(algorithms: Mapping[str, Callable], n_trials: int, seed: int,
         truths.append(sc.truth)
         ms.append(sc.Y.shape[1])
         for name in names:
-            best = np.inf
-            for _ in range(int(repeat)):
-                t0 = time.perf_counter()
-                a = algorithms[name](sc.density, sc.Y)
-                best = min(best, time.perf_counter() - t0)
+            a, best = best_of(int(repeat), algorithms[name], sc.density, sc.Y)
             extra[name]["time"].append(best)
             idx[name].append(a.idx)
             extra[name]["nodes"].append(int(a.stats.get("nodes", 0)))

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from helpers.association.compatibility import uniform_surprisal
-from helpers.association.snn import snn
-from helpers.features import Features, detect_features
+from .compatibility import uniform_surprisal
+from .snn import snn
+from ..features import Features, detect_features
 
 __all__ = [
     "DEMO_DETECTOR",
@@ -322,5 +322,5 @@ def plot_association(image, result: AssociationResult, ax=None, n_sigma: float =
         ax.set_title(title)
     if legend:
         ax.legend(handles=figure1_legend_handles(truth is not None), loc="upper center",
-                  bbox_to_anchor=(0.5, -0.01), ncol=2, fontsize=8, frameon=False)
+                  bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=8, frameon=False)  # below the x label
     return fig, ax

@@ -26,7 +26,7 @@ import numbers
 
 import numpy as np
 
-from helpers.association.common import Association, empty_association, finish, greedy_one_to_one, prepare
+from .common import Association, empty_association, finish, greedy_one_to_one, prepare
 
 __all__ = ["maximum_likelihood", "ml_scores"]
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from helpers.association.common import Association, finish, prepare
+from .common import Association, finish, prepare
 
 __all__ = ["MLTreeResult", "ml_costs", "ml_tree_search", "greedy_descent", "independent_ml", "exhaustive_ml",
            "assignment_ml", "tree_size", "hypothesis_cost"]

@@ -20,8 +20,8 @@ import numbers
 
 import numpy as np
 
-from helpers.association.common import Association, empty_association, finish, greedy_one_to_one, prepare
-from helpers.association.snn import snn
+from .common import Association, empty_association, finish, greedy_one_to_one, prepare
+from .snn import snn
 
 __all__ = ["nearest_neighbour", "mahalanobis_nn", "surprisal_nn"]
 

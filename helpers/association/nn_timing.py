@@ -14,9 +14,10 @@ O(K·N) law.
 from __future__ import annotations
 
 import numbers
-import time
 
 import numpy as np
+
+from ..timing import best_of
 
 __all__ = ["inverse_2x2", "pair_distances", "nn_distance_table", "per_observation_nn", "random_nn_problem",
            "time_nn", "loglog_slope"]
@@ -110,11 +111,7 @@ def time_nn(Ks, Ns, seed: int = 0, repeats: int = 5):
     for n in Ns:
         for k in Ks:
             mu, S, Y = random_nn_problem(rng, int(n), int(k))
-            best = np.inf
-            for _ in range(int(repeats)):
-                t0 = time.perf_counter()
-                per_observation_nn(mu, S, Y)
-                best = min(best, time.perf_counter() - t0)
+            _, best = best_of(int(repeats), per_observation_nn, mu, S, Y)
             out_k.append(int(k))
             out_n.append(int(n))
             out_t.append(best)

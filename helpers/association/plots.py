@@ -5,8 +5,8 @@ from __future__ import annotations
 import matplotlib.ticker as mticker
 import numpy as np
 
-from helpers.association.jcbb import TRACE_BEST, TRACE_BOUND, TRACE_EXPANDED, TRACE_JC_FAIL, JCBBTrace
-from helpers.figures import COLORS
+from .jcbb import TRACE_BEST, TRACE_BOUND, TRACE_EXPANDED, TRACE_JC_FAIL, JCBBTrace
+from ..figures import COLORS
 
 __all__ = ["draw_gates", "draw_association", "draw_interpretation_tree", "tree_layout", "ALGORITHM_STYLE",
            "algorithm_style", "plot_rate_sweep", "log_count_axis", "draw_node_counts", "draw_times"]

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from helpers.figures import COLORS
+from ..figures import COLORS
 
 __all__ = ["rates", "fmt_rate", "plot_rates"]
 

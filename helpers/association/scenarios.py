@@ -237,8 +237,8 @@ def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size:
 @functools.lru_cache(maxsize=1)
 def _lab_scene():
     """The lab's camera and demo state, built once (reading the camera XML is the slow part)."""
-    from helpers.camera import load_lab_camera
-    from helpers.state_slam import lab_demo_state
+    from ..camera import load_lab_camera
+    from ..state_slam import lab_demo_state
 
     return load_lab_camera(), lab_demo_state()
 

@@ -34,14 +34,14 @@ benchmark.
 """
 from __future__ import annotations
 
-import numbers
 
 import numpy as np
 from scipy import linalg
 
-from helpers.association.compatibility import (individual_compatibility, individual_compatibility_matrix,
-                                               joint_compatibility)
-from helpers.gaussian import chi2inv, confidence_level
+from .compatibility import (check_bundle_density, individual_compatibility, individual_compatibility_matrix,
+                            joint_compatibility)
+from ..gaussian import chi2inv, confidence_level, square_r_factor
+from ..validation import feature_columns, finite_number
 
 __all__ = ["snn", "snn_reference"]
 
@@ -51,48 +51,24 @@ _LOG_2PI = float(np.log(2.0 * np.pi))
 # ----------------------------------------------------------------------------------------------------
 # validation
 # ----------------------------------------------------------------------------------------------------
-def _check_density(density):
-    if not (hasattr(density, "mean") and hasattr(density, "sqrt_cov")):
-        raise ValueError(f"density must be a helpers.gaussian.Gaussian, got {type(density).__name__}")
-    mu = np.asarray(density.mean, dtype=float)
-    S = np.asarray(density.sqrt_cov, dtype=float)
-    if mu.ndim != 1 or mu.size == 0 or mu.size % 2:
-        raise ValueError(f"density must have an even, positive size 2n (one pixel pair per landmark), got {mu.size}")
-    return mu, S
-
-
-def _check_Y(Y):
-    Y = np.asarray(Y, dtype=float)
-    if Y.ndim != 2 or Y.shape[0] != 2:
-        raise ValueError(f"Y must be a 2 × m array of feature pixel coordinates, got shape {Y.shape}")
-    if not np.all(np.isfinite(Y)):
-        raise ValueError("Y must be finite (no NaN/inf)")
-    return Y
-
-
-def _check_sU(sU):
-    if isinstance(sU, bool) or not isinstance(sU, numbers.Real) or not np.isfinite(sU):
-        raise ValueError(f"sU must be a finite number (log of the image area), got {sU!r}")
-    return float(sU)
-
-
 def _check_flag(flag):
     if not isinstance(flag, (bool, np.bool_)):
         raise ValueError(f"enforce_joint_compatibility must be a bool, got {flag!r}")
     return bool(flag)
 
 
+def _check_inputs(density, Y, sU, n_sigma, enforce_joint_compatibility):
+    """(μ, Y, sU, enforce) of a valid SNN call; bad input raises ValueError naming the argument."""
+    check_bundle_density(density, allow_empty=False)
+    Y = feature_columns(Y)
+    sU = finite_number(sU, "sU")
+    enforce = _check_flag(enforce_joint_compatibility)
+    _gate(n_sigma, 2)
+    return density.mean, Y, sU, enforce
+
+
 def _gate(n_sigma, dof):
     return chi2inv(confidence_level(n_sigma), dof)     # validates n_sigma
-
-
-def _r_factor(A):
-    """Square upper-triangular R with AᵀA = RᵀR (top rows of the QR of A, zero-padded)."""
-    k = A.shape[1]
-    R = np.triu(np.linalg.qr(A, mode="r"))
-    out = np.zeros((k, k))
-    out[:min(R.shape[0], k)] = R[:k]
-    return out
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -114,11 +90,8 @@ def snn(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool 
     idx : (n,) int array, idx[k] = feature column associated with selected landmark k, or −1.
     surprisal : float, total surprisal s(idx) of the returned association.
     """
-    mu, S = _check_density(density)
-    Y = _check_Y(Y)
-    sU = _check_sU(sU)
-    enforce = _check_flag(enforce_joint_compatibility)
-    _gate(n_sigma, 2)
+    mu, Y, sU, enforce = _check_inputs(density, Y, sU, n_sigma, enforce_joint_compatibility)
+    S = density.sqrt_cov
     n, m = mu.size // 2, Y.shape[1]
     idx = np.full(n, -1, dtype=np.intp)
     if m == 0:
@@ -131,7 +104,7 @@ def snn(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool 
         if cand.size == 0:
             continue
         rows = [r for a in assoc for r in (2 * a, 2 * a + 1)] + [2 * j, 2 * j + 1]
-        R = _r_factor(S[:, rows])
+        R = square_r_factor(S[:, rows])
         k = 2 * len(assoc)
         R11, R12, R22 = R[:k, :k], R[:k, k:], R[k:, k:]
         if np.any(np.diag(R) == 0):
@@ -169,11 +142,7 @@ def snn_reference(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibil
 
     Same inputs and outputs as :func:`snn`; kept as the oracle for tests and the naive benchmark.
     """
-    mu, _ = _check_density(density)
-    Y = _check_Y(Y)
-    sU = _check_sU(sU)
-    enforce = _check_flag(enforce_joint_compatibility)
-    _gate(n_sigma, 2)
+    mu, Y, sU, enforce = _check_inputs(density, Y, sU, n_sigma, enforce_joint_compatibility)
     n, m = mu.size // 2, Y.shape[1]
     idx = [-1] * n
     s = n * sU

@@ -1,7 +1,8 @@
 """helpers.drivebot — the DriveBot simulator and graph-SLAM system of the coursework (COMP0130 CW2).
 
 Modules: ``events`` (event types, the time-ordered queue), ``config`` (``SimulatorConfiguration``),
-``scenarios`` (maps and routes in ``data/drivebot/``), ``simulator`` (``DriveBotSimulator``), ``edges``
+``scenarios`` (maps and routes in ``data/drivebot/``), ``scenario_files`` (generating and writing them),
+``simulator`` (``DriveBotSimulator``), ``edges``
 (vehicle/landmark vertices, the kinematics edge, the buggy compass edge), ``slam_system``
 (``DriveBotSLAMSystem``), ``runner`` (``run_question``, ``Results``).
 

@@ -17,8 +17,10 @@ Defined here:
     x_{k+1} = x_k + ΔT M(ψ_k)(u + v)      ⇒      e = v = Mᵀ(ψ_k) Δ / ΔT − u,
     Δ = [x_{k+1} − x_k, y_{k+1} − y_k, wrap(ψ_{k+1} − ψ_k)],  c = cos ψ_k, s = sin ψ_k,
     J_k     = (1/ΔT) [[−c, −s, −Δx s + Δy c], [s, −c, −Δx c − Δy s], [0, 0, −1]],
-    J_{k+1} = Mᵀ(ψ_k) / ΔT.
-    (Evaluated for all edges of the class by one compiled kernel, ``_kinematics_kernel``.)
+    J_{k+1} = Mᵀ(ψ_k) / ΔT = (1/ΔT) [[c, s, 0], [−s, c, 0], [0, 0, 1]].
+    ``evaluate_reference`` is these equations in numpy, for all edges of the class at once (it is also the
+    example edge of ``helpers.graph``'s protocol); ``evaluate``, which the optimiser calls, computes the same
+    numbers in the compiled loop ``helpers.graph.kernels.vehicle_kinematics``.
     ``initialize()`` sets x_{k+1} = x_k ⊞ ΔT M(ψ_k) z (forward prediction, ψ wrapped) — see ``predict``.
 
 ``BuggyCompassEdge`` — the coursework's provided compass edge: e = ψ + Δψ_C − z with **no wrap**,
@@ -28,10 +30,9 @@ J = [0, 0, 1]. Once ψ + Δψ_C leaves [−π, π) while the simulator's z is wr
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from ..graph import (BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, VertexPointXY, VertexSE2,
-                     wrap_angle)
+                     batch_matrix, kernels, wrap_angle)
 
 __all__ = ["VehicleVertex", "LandmarkVertex", "VehicleKinematicsEdge", "BuggyCompassEdge", "FixedCompassEdge",
            "GPSEdge", "LandmarkRangeBearingEdge", "predict"]
@@ -75,59 +76,42 @@ def predict(x, u, dt):
     return out
 
 
-@njit(cache=True)
-def _kinematics_kernel(xk, xn, z, dt, jacobians):
-    """e = Mᵀ(ψ_k) Δ / ΔT − u and (optionally) J_k, J_{k+1} for E edges in one compiled loop."""
-    n = z.shape[0]
-    e = np.empty((n, 3))
-    m = n if jacobians else 0
-    jk = np.zeros((m, 3, 3))
-    jn = np.zeros((m, 3, 3))
-    two_pi = 2.0 * np.pi
-    for i in range(n):
-        c = np.cos(xk[i, 2])
-        s = np.sin(xk[i, 2])
-        inv = 1.0 / dt[i]
-        dx = xn[i, 0] - xk[i, 0]
-        dy = xn[i, 1] - xk[i, 1]
-        dpsi = xn[i, 2] - xk[i, 2]
-        dpsi -= two_pi * np.floor((dpsi + np.pi) / two_pi)
-        if dpsi >= np.pi:
-            dpsi -= two_pi
-        e[i, 0] = (c * dx + s * dy) * inv - z[i, 0]
-        e[i, 1] = (-s * dx + c * dy) * inv - z[i, 1]
-        e[i, 2] = dpsi * inv - z[i, 2]
-        if jacobians:
-            jk[i, 0, 0] = -c * inv
-            jk[i, 0, 1] = -s * inv
-            jk[i, 0, 2] = (-dx * s + dy * c) * inv
-            jk[i, 1, 0] = s * inv
-            jk[i, 1, 1] = -c * inv
-            jk[i, 1, 2] = (-dx * c - dy * s) * inv
-            jk[i, 2, 2] = -inv
-            jn[i, 0, 0] = c * inv
-            jn[i, 0, 1] = s * inv
-            jn[i, 1, 0] = -s * inv
-            jn[i, 1, 1] = c * inv
-            jn[i, 2, 2] = inv
-    return e, jk, jn
-
-
 class VehicleKinematicsEdge(BaseEdge):
-    """Velocity-form process model between consecutive vehicle poses, per-edge ``dt`` (module docstring)."""
+    """Velocity-form process model between consecutive vehicle poses, per-edge ``dt`` (module docstring).
+
+    ``evaluate_reference``: the model in numpy; ``evaluate``: the same numbers from a compiled loop."""
 
     vertex_types = (VertexSE2, VertexSE2)
     measurement_dimension = 3
     parameters = {"dt": 0.1}
 
     @staticmethod
+    def evaluate_reference(states, z, params, jacobians=True):
+        # Q1b: the process-model edge, e = Mᵀ(ψ_k) Δ / ΔT − u, and its analytic Jacobians J_k, J_{k+1}
+        # (module docstring), for every edge of the class at once.
+        xk, xn = states
+        inv_dt = 1.0 / params["dt"]
+        c, s = np.cos(xk[:, 2]), np.sin(xk[:, 2])
+        dx, dy = xn[:, 0] - xk[:, 0], xn[:, 1] - xk[:, 1]
+        dpsi = wrap_angle(xn[:, 2] - xk[:, 2])
+        e = np.stack([c * dx + s * dy, -s * dx + c * dy, dpsi], axis=1) * inv_dt[:, None] - z
+        if not jacobians:
+            return e, None
+        jk = batch_matrix([[-c, -s, -dx * s + dy * c],
+                           [s, -c, -dx * c - dy * s],
+                           [0, 0, -1]])
+        jn = batch_matrix([[c, s, 0],
+                           [-s, c, 0],
+                           [0, 0, 1]])
+        return e, [jk * inv_dt[:, None, None], jn * inv_dt[:, None, None]]
+
+    @staticmethod
     def evaluate(states, z, params, jacobians=True):
-        # Q1b: the process-model edge. e = Mᵀ(ψ_k) Δ / ΔT − u, analytic J_k and J_{k+1} (module docstring),
-        # for every edge of the class at once.
+        # the optimiser's fast path: evaluate_reference's numbers from one compiled loop over the edges
         xk, xn = states
         dt = np.ascontiguousarray(params["dt"], dtype=float).reshape(-1)
-        e, jk, jn = _kinematics_kernel(np.ascontiguousarray(xk), np.ascontiguousarray(xn),
-                                       np.ascontiguousarray(z), dt, bool(jacobians))
+        e, jk, jn = kernels.vehicle_kinematics(np.ascontiguousarray(xk), np.ascontiguousarray(xn),
+                                               np.ascontiguousarray(z), dt, bool(jacobians))
         return (e, [jk, jn]) if jacobians else (e, None)
 
     def initialize(self) -> None:

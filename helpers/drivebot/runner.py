@@ -42,7 +42,8 @@ from tqdm import tqdm
 
 from . import pruning
 from ..gaussian import chi2_interval, confidence_level
-from ..graph import GraphError
+from ..graph import GraphError, wrap_angle_mod
+from ..timing import timed
 from .config import SimulatorConfiguration
 from .scenarios import Scenario, load_scenario
 from .simulator import DriveBotSimulator, make_rng
@@ -121,7 +122,7 @@ class Results:
     def state_error(self) -> np.ndarray:
         """Estimate − truth (3×N), heading wrapped into [−π, π)."""
         err = self.vehicle_state_history - self.vehicle_true_state_history
-        err[2] = (err[2] + np.pi) % (2 * np.pi) - np.pi
+        err[2] = wrap_angle_mod(err[2])
         return err
 
     def graph_statistics(self) -> dict:
@@ -259,9 +260,8 @@ def _tick(system, events, rec, time):
     system.process_events(events)
     rec["last"] = system.recommend_optimization()
     if rec["last"]:
-        t0 = _time.perf_counter()
-        chi2 = system.optimize()
-        rec["times"].append(_time.perf_counter() - t0)
+        chi2, seconds = timed(system.optimize)
+        rec["times"].append(seconds)
         rec["iters"].append(system.graph.iterations)
         rec["chi2_t"].append(time)
         rec["chi2_h"].append(chi2)
@@ -273,9 +273,7 @@ def _tick(system, events, rec, time):
 def _finish(system, rec, true_t, true_x, question, config, scenario) -> Results:
     """End of run: the final optimisation if the last tick did not optimise, then the smoothed histories."""
     if not rec["last"]:
-        t0 = _time.perf_counter()
-        chi2 = system.optimize(20)
-        rec["times"][-1] = _time.perf_counter() - t0
+        chi2, rec["times"][-1] = timed(system.optimize, 20)
         rec["iters"][-1] = system.graph.iterations
         rec["chi2_t"].append(true_t[-1])
         rec["chi2_h"].append(chi2)

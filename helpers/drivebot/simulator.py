@@ -33,6 +33,7 @@ import numbers
 
 import numpy as np
 
+from ..graph.angles import wrap_angle_mod
 from .config import SimulatorConfiguration
 from .events import Event, EventQueue, EventType
 from .scenarios import Scenario
@@ -40,13 +41,9 @@ from .scenarios import Scenario
 __all__ = ["DriveBotSimulator", "wrap"]
 
 
-def wrap(a):
-    """Wrap angles into [−π, π) (element-wise)."""
-    return (np.asarray(a, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def _wrap1(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
+#: Wrap angles into [−π, π) element-wise: the shared ``wrap_angle_mod`` ((θ + π) mod 2π − π, see
+#: ``helpers.graph.angles`` for why the simulator keeps that form rather than ``wrap_angle``).
+wrap = wrap_angle_mod
 
 
 def make_rng(seed) -> np.random.Generator:
@@ -143,7 +140,7 @@ class DriveBotSimulator:
         dist = self._speed * c.dt
         self._x += dist * math.cos(self._psi)
         self._y += dist * math.sin(self._psi)
-        self._psi = _wrap1(self._psi + dist * math.sin(self._steer) / c.wheelbase)
+        self._psi = wrap_angle_mod(self._psi + dist * math.sin(self._steer) / c.wheelbase)
         self._t += c.dt
         self._step += 1
         q = EventQueue()
@@ -181,7 +178,7 @@ class DriveBotSimulator:
             d = math.hypot(dx, dy)
         dv = min(max(0.1 * d - self._speed, -c.max_acceleration * c.dt), c.max_acceleration * c.dt)
         self._speed = min(max(self._speed + dv, c.min_speed), c.max_speed)
-        dd = _wrap1(math.atan2(dy, dx) - self._psi - self._steer)
+        dd = wrap_angle_mod(math.atan2(dy, dx) - self._psi - self._steer)
         dd = min(max(dd, -c.max_diff_delta_rate * c.dt), c.max_diff_delta_rate * c.dt)
         self._steer = min(max(self._steer + dd, -c.max_delta), c.max_delta)
         self._carry_on = True
@@ -204,7 +201,7 @@ class DriveBotSimulator:
     def _compass_event(self) -> Event:
         c = self.config
         n = self._rng.standard_normal()
-        z = _wrap1(self._psi + c.compass_angular_offset + self._noise_scale * self._sigma_compass * n)
+        z = wrap_angle_mod(self._psi + c.compass_angular_offset + self._noise_scale * self._sigma_compass * n)
         return Event(self._t, EventType.COMPASS, np.array([z]), c.r_compass, offset=c.compass_angular_offset)
 
     def _laser_event(self) -> Event | None:

@@ -41,10 +41,6 @@ from .events import Event, EventType
 
 __all__ = ["DriveBotSLAMSystem", "check_period"]
 
-NP = 3  # vehicle state dimension
-NL = 2  # landmark state dimension
-
-
 def check_period(period, name="optimization_period"):
     """None / inf → None (optimise only at the end); a positive integer → int; anything else ValueError."""
     if period is None:

@@ -5,21 +5,32 @@ An edge class declares
     vertex_types          tuple, one vertex class per slot (isinstance check; subclasses are accepted)
     measurement_dimension m
     parameters            dict name -> default (array-like; its shape is the per-edge shape), e.g. {"dt": 0.1}
-    evaluate(states, z, params, jacobians=True) -> (e, [J_0, J_1, ...])      (staticmethod)
 
-``evaluate`` receives ``states`` = list of (E, d_k) arrays (the estimates of slot k for E edges), ``z`` (E, m) and
-``params`` {name: (E, *shape)}; it returns the errors e (E, m) and, when ``jacobians`` is true, the Jacobians
-J_k = ∂e/∂(vertex k) of shape (E, m, d_k) with respect to the vertex's ⊞ update (else ``None``).
+and its model in one of two ways:
+
+    evaluate(states, z, params, jacobians=True) -> (e, [J_0, J_1, ...])      (staticmethod; analytic Jacobians)
+    error_batch(states, z, params) -> e                                        (staticmethod; error only)
+
+``states`` = list of (E, d_k) arrays (the estimates of slot k for E edges), ``z`` (E, m), ``params``
+{name: (E, *shape)}; e (E, m) and, when ``jacobians`` is true, J_k = ∂e/∂(vertex k) of shape (E, m, d_k) with
+respect to the vertex's coordinates (= its ⊞ update for additive ⊞; else ``None``). A class that gives only
+``error_batch`` inherits ``BaseEdge.evaluate``, which takes the Jacobians by central differences through each
+slot's ⊞ (``numeric_jacobians``): right but slower, and a good check of analytic ones.
 Convention: e = h(x) − z, χ² = eᵀ Ω e, and the optimiser steps X ⊞ (−dX) with dX = H⁻¹ b.
 The per-object ``error()`` / ``chi2()`` call the same ``evaluate`` with E = 1.
+
+Where a compiled kernel (``kernels.py``) replaces a numpy ``evaluate`` for speed, the class keeps the readable
+numpy model as ``evaluate_reference`` (same signature and results; the tests compare the two).
+``batch_matrix`` writes an (E, r, c) stack of Jacobians row by row, the way the equations read.
 """
 
 import numpy as np
 
+from .angles import wrap_angle
 from .errors import GraphError
 from .vertex import BaseVertex, _as_vector
 
-__all__ = ["BaseEdge", "check_information"]
+__all__ = ["BaseEdge", "check_information", "batch_matrix", "numeric_jacobians"]
 
 
 _INFO_CACHE = {}
@@ -86,6 +97,47 @@ def check_information_batch(info, m, name="information"):
     return arr, lower.transpose(0, 2, 1).copy()
 
 
+def batch_matrix(rows):
+    """(E, r, c) array from a matrix written row by row whose entries are (E,) arrays or scalars.
+
+    ``batch_matrix([[c, -s], [s, c]])`` stacks the rotations R(ψ) of E angles (c, s of shape (E,)).
+    """
+    if not rows or any(len(row) != len(rows[0]) for row in rows) or len(rows[0]) == 0:
+        raise ValueError(f"rows must be a non-empty list of equally long rows, got {rows!r}")
+    out = np.empty(np.broadcast_shapes(*(np.shape(v) for row in rows for v in row)) + (len(rows), len(rows[0])))
+    for i, row in enumerate(rows):
+        for j, value in enumerate(row):
+            out[..., i, j] = value
+    return out
+
+
+def numeric_jacobians(cls, states, z, params, step=None):
+    """[J_k (E, m, d_k)] of ``cls.error_batch`` by central differences, (e(x ⊞ hε_a) − e(x ⊞ −hε_a)) / 2h.
+
+    Slot k steps through ``cls.vertex_types[k].oplus_batch`` when that ⊞ is additive to first order (no
+    ``oplus_jacobian_batch``), else through plain addition: J is with respect to the coordinates either way.
+    The difference of the errors is wrapped into [−π, π), so an angular component that crosses the ±π cut
+    between the two evaluations does not jump by 2π (assumes |J|·2h < π).
+    """
+    h = float(cls.numeric_step if step is None else step)
+    if not (np.isfinite(h) and h > 0):
+        raise ValueError(f"step must be a positive finite number, got {step!r}")
+    jac = []
+    for k, x in enumerate(states):
+        vtype = cls.vertex_types[k]
+        oplus = vtype.oplus_batch if vtype.oplus_jacobian_batch is None else np.add
+        cols = []
+        for a in range(x.shape[1]):
+            dx = np.zeros(x.shape)
+            dx[:, a] = h
+            plus, minus = list(states), list(states)
+            plus[k], minus[k] = oplus(x, dx), oplus(x, -dx)
+            diff = cls.error_batch(plus, z, params) - cls.error_batch(minus, z, params)
+            cols.append(wrap_angle(diff) / (2.0 * h))
+        jac.append(np.stack(cols, axis=-1))
+    return jac
+
+
 class _ParameterProperty:
     def __init__(self, name):
         self.name = name
@@ -145,10 +197,25 @@ class BaseEdge:
         if information is not None:
             self.set_information(information)
 
-    # ----- vectorised model (override) ----------------------------------------------------------------
+    # ----- vectorised model (override evaluate, or only error_batch) ---------------------------------------
+    #: step h of the central differences in the default ``evaluate``
+    numeric_step = 1e-6
+    #: the readable numpy model, for classes whose ``evaluate`` is a compiled fast path (else None)
+    evaluate_reference = None
+
     @staticmethod
-    def evaluate(states, z, params, jacobians=True):
+    def error_batch(states, z, params):
+        """e (E, m) = h(x) − z for E edges. Define it (and not ``evaluate``) to get numeric Jacobians."""
         raise NotImplementedError
+
+    @classmethod
+    def evaluate(cls, states, z, params, jacobians=True):
+        """Default model: e from ``error_batch``; J_k by central differences through slot k's ⊞."""
+        if cls.error_batch is BaseEdge.error_batch:
+            raise NotImplementedError(f"{cls.__name__} must define evaluate(states, z, params, jacobians) "
+                                      "or error_batch(states, z, params)")
+        e = cls.error_batch(states, z, params)
+        return e, (numeric_jacobians(cls, states, z, params) if jacobians else None)
 
     # ----- vertices ------------------------------------------------------------------------------------
     def set_vertex(self, k, vertex):

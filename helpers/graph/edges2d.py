@@ -2,11 +2,8 @@
 
 Notation: pose x = [x, y, ψ], t = [x, y], R(ψ) = [[c, −s], [s, c]], S = [[0, −1], [1, 0]] (so dR/dψ = S R).
 
-EdgeSE2            pose–pose between (odometry / loop closure), the GTSAM/g2o relative pose measurement
-                   z = (t_z, θ_z) of x_j in the frame of x_i. The error is GTSAM's BetweenFactor error
-                     d = z⁻¹ (x_i⁻¹ x_j):  t_d = R(θ_z)ᵀ (R(ψ_i)ᵀ (t_j − t_i) − t_z),  θ_d = wrap(ψ_j − ψ_i − θ_z)
-                     e = Log(d) = [V(θ_d)⁻¹ t_d, θ_d],  V⁻¹(θ) = [[α, β], [−β, α]], α = (θ/2)·cot(θ/2), β = θ/2
-                   (so χ² equals 2 × GTSAM's error; for small θ_d it equals g2o's [t_d, θ_d] to second order).
+EdgeSE2            pose–pose between (odometry / loop closure): GTSAM's BetweenFactor error, e = Log(z⁻¹ x_i⁻¹ x_j)
+                   (equations and both Jacobians in the class docstring; compiled fast path ``kernels.se2_between``).
 EdgeSE2Prior       e = [t − t_z, wrap(ψ − ψ_z)], J = I₃.
 EdgePositionPrior  GPS with a body-frame lever arm l: h = t + R(ψ) l, e = h − z,
                    J = [[1, 0, −s lx − c ly], [0, 1, c lx − s ly]].
@@ -15,17 +12,19 @@ EdgeRangeBearing   pose → point, z = (range, bearing); d = m − t, r = ‖d�
                    e = [r − z_r, wrap(atan2(dy, dx) − ψ − z_β)],
                    J_x = [[−dx/r, −dy/r, 0], [dy/r², −dx/r², −1]],  J_m = [[dx/r, dy/r], [−dy/r², dx/r²]].
 EdgePointPrior     e = m − z, J = I₂.
+EdgeSE2PointXY     pose → point in the pose's frame (g2o EDGE_SE2_XY): q = R(ψ)ᵀ(m − t), e = q − z,
+                   J_x = [−R(ψ)ᵀ | [q_y, −q_x]ᵀ],  J_m = R(ψ)ᵀ.
 """
 
 import numpy as np
-from numba import njit
 
+from . import kernels
 from .angles import wrap_angle
-from .edge import BaseEdge
+from .edge import BaseEdge, batch_matrix
 from .vertex import VertexPointXY, VertexSE2
 
 __all__ = ["EdgeSE2", "EdgeSE2Prior", "EdgePositionPrior", "EdgeHeadingPrior", "EdgeRangeBearing",
-           "EdgePointPrior", "se2_log_coefficients"]
+           "EdgePointPrior", "EdgeSE2PointXY", "se2_log_coefficients"]
 
 
 def _eye_stack(n, m):
@@ -33,6 +32,11 @@ def _eye_stack(n, m):
     idx = np.arange(m)
     out[:, idx, idx] = 1.0
     return out
+
+
+def _apply(mats, vecs):
+    """Matrix times vector for stacks: (E, r, c) @ (E, c) → (E, r)."""
+    return np.einsum("eij,ej->ei", mats, vecs)
 
 
 def se2_log_coefficients(theta):
@@ -50,67 +54,50 @@ def se2_log_coefficients(theta):
     return alpha, half, dalpha
 
 
-@njit(cache=True)
-def _se2_between(xi, xj, z, jacobians):
-    """The EdgeSE2 model (one loop over edges, compiled): e = Log(z⁻¹ x_i⁻¹ x_j) and its Jacobians."""
-    n = len(z)
-    e = np.empty((n, 3))
-    ji = np.zeros((n, 3, 3))
-    jj = np.zeros((n, 3, 3))
-    two_pi = 2.0 * np.pi
-    for t in range(n):
-        ci, si = np.cos(xi[t, 2]), np.sin(xi[t, 2])
-        cz, sz = np.cos(z[t, 2]), np.sin(z[t, 2])
-        dx, dy = xj[t, 0] - xi[t, 0], xj[t, 1] - xi[t, 1]
-        trx, try_ = ci * dx + si * dy, -si * dx + ci * dy
-        ux, uy = trx - z[t, 0], try_ - z[t, 1]
-        tdx, tdy = cz * ux + sz * uy, -sz * ux + cz * uy
-        th = xj[t, 2] - xi[t, 2] - z[t, 2]
-        th = th - two_pi * np.floor((th + np.pi) / two_pi)
-        if th >= np.pi:
-            th -= two_pi
-        if abs(th) < 1e-4:
-            t2 = th * th
-            a = 1.0 - t2 / 12.0 - t2 * t2 / 720.0
-            da = -th / 6.0 - t2 * th / 180.0
-        else:
-            hs = 0.5 * th
-            cot = np.cos(hs) / np.sin(hs)
-            a = hs * cot
-            da = 0.5 * cot - 0.25 * th / np.sin(hs) ** 2
-        b = 0.5 * th
-        e[t, 0] = a * tdx + b * tdy
-        e[t, 1] = -b * tdx + a * tdy
-        e[t, 2] = th
-        if not jacobians:
-            continue
-        cg, sg = np.cos(xi[t, 2] + z[t, 2]), np.sin(xi[t, 2] + z[t, 2])
-        m00, m01 = a * cg - b * sg, a * sg + b * cg
-        m10, m11 = -b * cg - a * sg, -b * sg + a * cg
-        dvx, dvy = da * tdx + 0.5 * tdy, -0.5 * tdx + da * tdy
-        px, py = cz * try_ - sz * trx, -sz * try_ - cz * trx
-        vpx, vpy = a * px + b * py, -b * px + a * py
-        ji[t, 0, 0], ji[t, 0, 1], ji[t, 1, 0], ji[t, 1, 1] = -m00, -m01, -m10, -m11
-        ji[t, 0, 2], ji[t, 1, 2], ji[t, 2, 2] = vpx - dvx, vpy - dvy, -1.0
-        jj[t, 0, 0], jj[t, 0, 1], jj[t, 1, 0], jj[t, 1, 1] = m00, m01, m10, m11
-        jj[t, 0, 2], jj[t, 1, 2], jj[t, 2, 2] = dvx, dvy, 1.0
-    return e, ji, jj
-
-
 class EdgeSE2(BaseEdge):
-    """Relative pose between two SE2 vertices (see the module docstring for e and the Jacobians).
+    """Relative pose z = (t_z, θ_z) of x_j in the frame of x_i (odometry, loop closure); GTSAM's BetweenFactor.
 
-    The model is one compiled kernel (``_se2_between``) over all edges of the class.
+    d = z⁻¹ (x_i⁻¹ x_j):  q = R(ψ_i)ᵀ (t_j − t_i),  t_d = R(θ_z)ᵀ (q − t_z),  θ_d = wrap(ψ_j − ψ_i − θ_z)
+    e = Log(d) = [V⁻¹ t_d, θ_d],  V⁻¹ = [[α, β], [−β, α]],  α = (θ_d/2)·cot(θ_d/2),  β = θ_d/2
+    J_j = [[M, D], [0, 1]],  J_i = [[−M, V⁻¹ p − D], [0, −1]]   (2×2 and 2×1 blocks), with
+        M = V⁻¹ R(ψ_i + θ_z)ᵀ = ∂e_t/∂t_j,   D = (dV⁻¹/dθ) t_d = [[α', ½], [−½, α']] t_d,
+        p = R(θ_z)ᵀ [q_y, −q_x]ᵀ = ∂t_d/∂ψ_i.
+    χ² is 2 × GTSAM's error; for small θ_d, e equals g2o's [t_d, θ_d] to second order.
+
+    ``evaluate_reference`` is this model in numpy. ``evaluate`` gives the same numbers from the compiled
+    ``kernels.se2_between`` (one loop over the edges), measured about 3× faster on W10000's 64k edges.
     """
 
     vertex_types = (VertexSE2, VertexSE2)
     measurement_dimension = 3
 
     @staticmethod
+    def evaluate_reference(states, z, params, jacobians=True):
+        xi, xj = states
+        c_i, s_i, c_z, s_z = np.cos(xi[:, 2]), np.sin(xi[:, 2]), np.cos(z[:, 2]), np.sin(z[:, 2])
+        ri_t, rz_t = batch_matrix([[c_i, s_i], [-s_i, c_i]]), batch_matrix([[c_z, s_z], [-s_z, c_z]])  # Rᵀ
+        q = _apply(ri_t, xj[:, :2] - xi[:, :2])
+        t_d = _apply(rz_t, q - z[:, :2])
+        theta = wrap_angle(xj[:, 2] - xi[:, 2] - z[:, 2])
+        alpha, beta, dalpha = se2_log_coefficients(theta)
+        v_inv = batch_matrix([[alpha, beta], [-beta, alpha]])
+        e = np.column_stack([_apply(v_inv, t_d), theta])
+        if not jacobians:
+            return e, None
+        m = v_inv @ rz_t @ ri_t
+        d = _apply(batch_matrix([[dalpha, 0.5], [-0.5, dalpha]]), t_d)
+        p = _apply(rz_t, np.column_stack([q[:, 1], -q[:, 0]]))
+        ji, jj = np.zeros((len(z), 3, 3)), np.zeros((len(z), 3, 3))
+        jj[:, :2, :2], jj[:, :2, 2], jj[:, 2, 2] = m, d, 1.0
+        ji[:, :2, :2], ji[:, :2, 2], ji[:, 2, 2] = -m, _apply(v_inv, p) - d, -1.0
+        return e, [ji, jj]
+
+    @staticmethod
     def evaluate(states, z, params, jacobians=True):
         xi, xj = states
-        e, ji, jj = _se2_between(np.ascontiguousarray(xi, dtype=float), np.ascontiguousarray(xj, dtype=float),
-                                 np.ascontiguousarray(z, dtype=float), bool(jacobians))
+        e, ji, jj = kernels.se2_between(np.ascontiguousarray(xi, dtype=float),
+                                        np.ascontiguousarray(xj, dtype=float),
+                                        np.ascontiguousarray(z, dtype=float), bool(jacobians))
         return e, ([ji, jj] if jacobians else None)
 
 
@@ -214,3 +201,30 @@ class EdgePointPrior(BaseEdge):
     def evaluate(states, z, params, jacobians=True):
         (m,) = states
         return m - z, ([_eye_stack(len(z), 2)] if jacobians else None)
+
+
+class EdgeSE2PointXY(BaseEdge):
+    """Point observed in the frame of a pose (g2o EDGE_SE2_XY): e = R(ψ)ᵀ(m − t) − z.
+
+    J_x = [−R(ψ)ᵀ | [q_y, −q_x]ᵀ] with q = R(ψ)ᵀ(m − t);  J_m = R(ψ)ᵀ.
+    """
+
+    vertex_types = (VertexSE2, VertexPointXY)
+    measurement_dimension = 2
+
+    @staticmethod
+    def evaluate(states, z, params, jacobians=True):
+        x, m = states
+        c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
+        dx, dy = m[:, 0] - x[:, 0], m[:, 1] - x[:, 1]
+        qx, qy = c * dx + s * dy, -s * dx + c * dy
+        e = np.stack([qx - z[:, 0], qy - z[:, 1]], axis=1)
+        if not jacobians:
+            return e, None
+        n = len(z)
+        jm = np.empty((n, 2, 2))
+        jm[:, 0, 0], jm[:, 0, 1], jm[:, 1, 0], jm[:, 1, 1] = c, s, -s, c
+        jx = np.zeros((n, 2, 3))
+        jx[:, :, :2] = -jm
+        jx[:, 0, 2], jx[:, 1, 2] = qy, -qx
+        return e, [jx, jm]

@@ -1,5 +1,5 @@
-"""Sparse linear algebra of the optimiser: the Hessian pattern, its LDLᵀ factorisation (qdldl) and sparse-inverse
-marginals.
+"""Sparse linear algebra of the optimiser: the Hessian pattern, its LDLᵀ factorisation (qdldl), and the batched
+per-edge products (JᵀJ, Jᵀe, W J) the linearisation uses.
 
 Pattern. Every edge contributes the blocks H_kl = J_kᵀ Ω J_l (k ≤ l) between its free vertices. The upper
 triangle (row ≤ col) of all contributions, plus the full diagonal (LM damping adds μ there), is computed once per
@@ -15,14 +15,7 @@ The solver is built in ``initialize_optimization`` on a diagonally dominant matr
 construction (which also factorises) never meets a zero pivot and the iterations only refactorise.
 qdldl factorises quasi-definite matrices without complaint, so positive definiteness is checked on D.
 
-Marginals (Takahashi et al. 1973). qdldl's factors satisfy Pᵀ H P = (I + L) D (I + L)ᵀ with P[perm[j], j] = 1
-(L strictly lower, CSC). The inverse Z = (Pᵀ H P)⁻¹ satisfies, for j = n−1, …, 0 and i in the pattern of column
-j of L:
-    Z_ij = − Σ_{k ∈ struct(L_:j)} L_kj Z_ik,        Z_jj = 1/d_j − Σ_{k ∈ struct(L_:j)} L_kj Z_kj
-which only ever needs Z on the pattern of L (the rows of a column form a clique of the filled graph). Every
-entry of H's pattern — in particular every vertex's diagonal block — lies inside that pattern, so all vertex
-covariance blocks come out exactly, without a dense inverse. No maintained Python library offers this sparse
-inverse subset, so the recursion on qdldl's L is a numba kernel.
+Marginals (the sparse inverse on the pattern of qdldl's L) are in ``marginals``.
 """
 
 import numpy as np
@@ -31,8 +24,7 @@ from numba import njit
 
 import qdldl
 
-__all__ = ["HessianPattern", "LDLSolver", "sparse_inverse_on_pattern", "batched_jtj", "batched_jte",
-           "batched_matmul"]
+__all__ = ["HessianPattern", "LDLSolver", "batched_jtj", "batched_jte", "batched_matmul"]
 
 
 @njit(cache=True)
@@ -177,82 +169,3 @@ class LDLSolver:
         if not self.ok:
             return np.full(self.pattern.n, np.nan)
         return np.asarray(self.qdldl.solve(np.ascontiguousarray(rhs, dtype=float)), dtype=float)
-
-
-@njit(cache=True)
-def _takahashi(n, lp, li, lx, d):
-    zx = np.zeros(len(lx))
-    zd = np.zeros(n)
-    pos = -np.ones(n, dtype=np.int64)
-    acc = np.zeros(n)
-    for j in range(n - 1, -1, -1):
-        s = lp[j]
-        t = lp[j + 1]
-        for q in range(s, t):
-            pos[li[q]] = q
-            acc[q - s] = 0.0
-        for q in range(s, t):
-            k = li[q]
-            lkj = lx[q]
-            acc[q - s] -= lkj * zd[k]
-            for u in range(lp[k], lp[k + 1]):
-                r = li[u]
-                pr = pos[r]
-                if pr >= 0:
-                    zrk = zx[u]
-                    acc[pr - s] -= lkj * zrk
-                    acc[q - s] -= lx[pr] * zrk
-        diag = 1.0 / d[j]
-        for q in range(s, t):
-            zx[q] = acc[q - s]
-            diag -= lx[q] * acc[q - s]
-            pos[li[q]] = -1
-        zd[j] = diag
-    return zx, zd
-
-
-@njit(cache=True)
-def _lookup(lp, li, zx, zd, pi, pj):
-    out = np.empty(len(pi))
-    for t in range(len(pi)):
-        a = pi[t]
-        b = pj[t]
-        if a == b:
-            out[t] = zd[a]
-            continue
-        col = min(a, b)
-        row = max(a, b)
-        lo = lp[col]
-        hi = lp[col + 1] - 1
-        val = np.nan
-        while lo <= hi:
-            mid = (lo + hi) // 2
-            r = li[mid]
-            if r == row:
-                val = zx[mid]
-                break
-            if r < row:
-                lo = mid + 1
-            else:
-                hi = mid - 1
-        out[t] = val
-    return out
-
-
-def sparse_inverse_on_pattern(solver, rows, cols):
-    """Entries (H⁻¹)[rows, cols] from the current (positive definite) factorisation of ``solver``.
-
-    Every requested entry must lie in the filled pattern of L (true for every entry of H's pattern: entries inside
-    a vertex's diagonal block and pairs of vertices joined by an edge); NaN is returned for any other entry.
-    """
-    lower, d, perm = solver.qdldl.factors()
-    lower = sp.csc_matrix(lower)
-    lower.sort_indices()
-    perm = np.asarray(perm, dtype=np.int64)
-    pinv = np.empty_like(perm)
-    pinv[perm] = np.arange(len(perm))
-    lp = lower.indptr.astype(np.int64)
-    li = lower.indices.astype(np.int64)
-    lx = np.ascontiguousarray(lower.data, dtype=float)
-    zx, zd = _takahashi(len(perm), lp, li, lx, np.ascontiguousarray(d, dtype=float))
-    return _lookup(lp, li, zx, zd, pinv[np.asarray(rows, dtype=np.int64)], pinv[np.asarray(cols, dtype=np.int64)])

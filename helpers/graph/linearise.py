@@ -1,0 +1,150 @@
+"""Linearisation: evaluate every edge class at the current estimates, whiten, and assemble χ², H and b.
+
+Per edge class (one ``EdgeClassBlock``, no Python loop over edges): gather the slot states, call the class's
+``evaluate``, multiply the Jacobians of slots whose vertex class has a non-additive ⊞ by M = ∂(x ⊞ δ)/∂δ, whiten
+(ẽ = W e, J̃_k = W J_k; elementwise when W is diagonal), then χ² = Σ‖ẽ‖², b_k = J̃_kᵀ ẽ, H_kl = J̃_kᵀ J̃_l.
+The values are scattered into H's CSC data and b with ``np.bincount`` on the positions ``structure`` computed.
+
+``FreeState`` is the free state vector X as the algorithms see it: read it, write it back, step it by ⊞, and
+evaluate χ² or the whole linear system at it.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .linear import batched_jte, batched_jtj, batched_matmul
+
+__all__ = ["LinearSystem", "FreeState", "whitened_blocks", "oplus_jacobians", "chi2_at", "linearise", "total_chi2"]
+
+
+@dataclass(frozen=True)
+class LinearSystem:
+    """H (upper-triangle CSC data on the structure's pattern), b and χ² at one state."""
+
+    hessian_data: np.ndarray
+    gradient: np.ndarray
+    chi2: float
+
+
+def oplus_jacobians(structure, estimates):
+    """Per dimension d: (handles, d, d) array of ∂(x ⊞ δ)/∂δ (identity for additive vertex classes)."""
+    out = {}
+    for group in structure.vertex_groups:
+        if group.cls.oplus_jacobian_batch is None:
+            continue
+        d = group.state_index.shape[1]
+        if d not in out:
+            out[d] = np.broadcast_to(np.eye(d), (structure.handle_count, d, d)).copy()
+        out[d][group.handles] = group.cls.oplus_jacobian_batch(estimates[group.state_index])
+    return out
+
+
+def whitened_blocks(structure, estimates, jacobians):
+    """Per edge class: (block, whitened errors (E, m), whitened Jacobians [(E, m, d_k)] or None)."""
+    out = []
+    mjac = oplus_jacobians(structure, estimates) if (jacobians and structure.manifold) else None
+    for blk in structure.blocks:
+        states = [estimates[s] for s in blk.state_index]
+        e, jac = blk.store.cls.evaluate(states, blk.measurements, blk.params, jacobians=jacobians)
+        if mjac is not None:
+            jac = [batched_matmul(np.ascontiguousarray(j), mjac[j.shape[2]][blk.handles[:, k]])
+                   if j.shape[2] in mjac else j for k, j in enumerate(jac)]
+        if blk.diagonal_whitening:
+            ew = blk.whitening * e
+            jw = None if jac is None else [blk.whitening[:, :, None] * j for j in jac]
+        else:
+            ew = batched_jte(blk.whitening_t, np.ascontiguousarray(e))
+            jw = None if jac is None else [batched_matmul(blk.whitening, np.ascontiguousarray(j)) for j in jac]
+        out.append((blk, ew, jw))
+    return out
+
+
+def chi2_at(structure, estimates):
+    """χ² of the structure's edges at ``estimates`` (no Jacobians)."""
+    total = 0.0
+    for _, ew, _ in whitened_blocks(structure, estimates, False):
+        total += float(np.einsum("ei,ei->", ew, ew))
+    return total
+
+
+def linearise(structure, estimates):
+    """The ``LinearSystem`` (H data, b, χ²) at ``estimates``."""
+    n = structure.dimension
+    hvals, bvals = [], []
+    chi2 = 0.0
+    for blk, ew, jw in whitened_blocks(structure, estimates, True):
+        chi2 += float(np.einsum("ei,ei->", ew, ew))
+        nv = blk.store.slots
+        jw = [np.ascontiguousarray(j) for j in jw]
+        for k in range(nv):
+            jk = jw[k]
+            for l in range(k, nv):
+                hvals.append(batched_jtj(jk, jw[l], k == l).ravel())
+            bvals.append(batched_jte(jk, ew).ravel())
+    if n == 0:
+        return LinearSystem(np.zeros(0), np.zeros(0), chi2)
+    data = structure.pattern.assemble(np.concatenate(hvals) if hvals else np.zeros(0))
+    b = np.bincount(structure.gradient_rows, weights=np.concatenate(bvals) if bvals else None, minlength=n + 1)[:n]
+    return LinearSystem(data, b, chi2)
+
+
+def total_chi2(vertex_store, edge_stores):
+    """χ² = Σ eᵀΩe over all live edges at the stored estimates (needs no built structure)."""
+    estimates = vertex_store.estimates.buffer
+    total = 0.0
+    for store in edge_stores.values():
+        rows = store.alive_rows()
+        if len(rows) == 0:
+            continue
+        handles = store.handles.values[rows]
+        states = [estimates[vertex_store.state_indices(handles[:, k], d)] for k, d in enumerate(store.slot_dimensions)]
+        params = {k: g.values[rows] for k, g in store.params.items()}
+        e, _ = store.cls.evaluate(states, store.measurements.values[rows], params, jacobians=False)
+        ew = np.einsum("eij,ej->ei", store.whitening.values[rows], e)
+        total += float(np.einsum("ei,ei->", ew, ew))
+    return total
+
+
+class FreeState:
+    """The free state vector X of a built structure over the graph's estimate storage.
+
+    ``get()`` copies X out, ``set(x)`` writes it back, ``retract(dx)`` steps X ← X ⊞ (−dx) per vertex class;
+    ``chi2()`` and ``linearise()`` evaluate at the current X; ``solve(system, damping)`` returns
+    dX = (H + damping·I)⁻¹ b (NaN when not positive definite) with the graph's LDLᵀ solver.
+    """
+
+    def __init__(self, structure, estimates, solver):
+        self.structure = structure
+        self._estimates = estimates  # GrowableArray (its buffer is re-read: it is replaced when it grows)
+        self.solver = solver
+
+    @property
+    def pattern(self):
+        return self.structure.pattern
+
+    def get(self):
+        return self._estimates.buffer[self.structure.free_state_index].copy()
+
+    def set(self, x):
+        self._estimates.buffer[self.structure.free_state_index] = x
+
+    def retract(self, dx):
+        vx = self._estimates.buffer
+        for group in self.structure.vertex_groups:
+            vx[group.state_index] = group.cls.oplus_batch(vx[group.state_index], -dx[group.hessian_rows])
+
+    def chi2(self):
+        return chi2_at(self.structure, self._estimates.buffer)
+
+    def linearise(self):
+        return linearise(self.structure, self._estimates.buffer)
+
+    def solve(self, system, damping=None):
+        """dX = (H + damping·I)⁻¹ b; ``damping=None``: undamped (H⁻¹ b)."""
+        pattern = self.structure.pattern
+        if damping is None:
+            return self.solver.factor(pattern, system.hessian_data).solve(system.gradient)
+        damped = system.hessian_data.copy()
+        damped[pattern.diag_pos] += damping
+        return self.solver.factor(pattern, damped, damping=damping).solve(system.gradient)

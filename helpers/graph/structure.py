@@ -1,0 +1,235 @@
+"""The structure of a graph, built by ``initialize_optimization`` once per change of its elements.
+
+Free state. The free (alive, not fixed) vertices are stacked in creation order into the state vector X: vertex
+handle h gets the Hessian rows ``hessian_index[h]`` … ``+ dimension`` (−1 for fixed or removed vertices).
+
+Edges. For every edge class with live edges an ``EdgeClassBlock`` copies what an iteration needs: per slot the
+positions of the slot vertices' coordinates in the flat estimate array and their first Hessian row, the
+measurements, the whitening matrices (just their diagonals when all are diagonal) and the parameters.
+
+Hessian pattern. Every edge contributes the blocks H_kl = J_kᵀ Ω J_l (k ≤ l) between its slots and b_k = J_kᵀ Ω e
+to its slots; the contributions are listed in the order ``linearise.linearise`` produces their values (per class,
+per slot k: H_kk, H_k(k+1), …, then b_k), and ``HessianPattern`` maps them to CSC positions once.
+
+Gauge check. Free vertices joined by an edge are connected; a component is anchored if one of its vertices is in
+an edge with a fixed vertex or in a unary (prior) edge. An unanchored component can move as a whole without
+changing χ², so H is singular: ``GaugeFreedomError`` names its vertices.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .errors import GaugeFreedomError
+from .linear import HessianPattern
+
+__all__ = ["GraphStructure", "EdgeClassBlock", "VertexGroup", "build_structure", "check_gauge"]
+
+
+@dataclass
+class VertexGroup:
+    """The free vertices of one vertex class (the ⊞ step is applied per group)."""
+
+    cls: type
+    state_index: np.ndarray    # (V, d) positions of their coordinates in the flat estimate array
+    hessian_rows: np.ndarray   # (V, d) their rows in X
+    handles: np.ndarray        # (V,) vertex handles
+
+
+@dataclass
+class EdgeClassBlock:
+    """The live edges of one class, as arrays (one build)."""
+
+    store: object              # the EdgeStore (class, slot count, dimensions)
+    rows: np.ndarray           # (E,) its alive rows
+    handles: np.ndarray        # (E, slots) vertex handles
+    state_index: list          # per slot k: (E, d_k) positions of the slot vertex's coordinates in the estimates
+    hessian_start: list        # per slot k: (E,) first row of the slot vertex in X, −1 when fixed
+    measurements: np.ndarray   # (E, m)
+    whitening: np.ndarray      # W (E, m, m), or its diagonal (E, m) when ``diagonal_whitening``
+    whitening_t: np.ndarray    # Wᵀ (E, m, m), contiguous
+    diagonal_whitening: bool
+    params: dict               # name -> (E, *shape)
+
+    @property
+    def count(self):
+        return len(self.rows)
+
+
+@dataclass
+class GraphStructure:
+    """Everything ``initialize_optimization`` computes; valid until the elements change."""
+
+    dimension: int             # n, size of X
+    handle_count: int          # number of vertex handles at build time
+    hessian_index: np.ndarray  # per handle: first row in X, −1 when fixed/removed
+    vertex_groups: list        # [VertexGroup], one per vertex class with free vertices
+    manifold: bool             # some free vertex class has a non-additive ⊞ (oplus_jacobian_batch)
+    free_state_index: np.ndarray  # (n,) position in the flat estimate array of every entry of X
+    blocks: list               # [EdgeClassBlock]
+    pattern: HessianPattern
+    gradient_rows: np.ndarray  # row in X of every b contribution (n for a fixed vertex: dropped)
+
+
+def free_state_layout(vertex_store):
+    """Hessian indices of the free vertices: (hessian_index, n, free handles, vertex groups, free_state_index)."""
+    handle_count = vertex_store.count
+    free = vertex_store.alive.values & ~vertex_store.fixed.values
+    dims = vertex_store.dimension.values
+    offset = vertex_store.offset.values
+    hessian_index = np.full(handle_count, -1, dtype=np.int64)
+    free_dims = dims[free]
+    starts = np.cumsum(free_dims) - free_dims
+    hessian_index[free] = starts
+    n = int(free_dims.sum())
+    free_handles = np.nonzero(free)[0]
+    groups = []
+    codes = vertex_store.class_code.values[free_handles]
+    for code in np.unique(codes):
+        hs = free_handles[codes == code]
+        cls = vertex_store.classes[code]
+        ar = np.arange(int(cls.dimension))
+        groups.append(VertexGroup(cls, offset[hs][:, None] + ar, hessian_index[hs][:, None] + ar, hs))
+    free_state_index = np.zeros(n, dtype=np.int64)
+    for g in groups:
+        free_state_index[g.hessian_rows.ravel()] = g.state_index.ravel()
+    return hessian_index, n, free_handles, groups, free_state_index
+
+
+def edge_class_block(store, rows, offset, hessian_index):
+    """The ``EdgeClassBlock`` of the given alive rows of one edge store."""
+    handles = store.handles.values[rows]
+    w = store.whitening.values[rows].copy()
+    offdiag = w.copy()
+    ar = np.arange(store.measurement_dimension)
+    offdiag[:, ar, ar] = 0.0
+    diagonal = not np.any(offdiag)
+    return EdgeClassBlock(
+        store=store, rows=rows, handles=handles,
+        state_index=[offset[handles[:, k]][:, None] + np.arange(d) for k, d in enumerate(store.slot_dimensions)],
+        hessian_start=[hessian_index[handles[:, k]] for k in range(store.slots)],
+        measurements=store.measurements.values[rows].copy(),
+        whitening=w[:, ar, ar].copy() if diagonal else w,
+        whitening_t=np.ascontiguousarray(w.transpose(0, 2, 1)),
+        diagonal_whitening=diagonal,
+        params={k: g.values[rows].copy() for k, g in store.params.items()})
+
+
+def hessian_contributions(block, n):
+    """Positions of the block's H and b contributions: lists of (rows, cols, valid) arrays of the upper-triangle
+    H entries, and of the b rows (n where the slot vertex is fixed), in ``linearise``'s value order."""
+    store = block.store
+    rows, cols, valid, gradient_rows = [], [], [], []
+    for k in range(store.slots):
+        dk = store.slot_dimensions[k]
+        hk = block.hessian_start[k]
+        for l in range(k, store.slots):
+            dl = store.slot_dimensions[l]
+            hl = block.hessian_start[l]
+            if k == l:
+                a, b = np.triu_indices(dk)
+            else:
+                a, b = np.divmod(np.arange(dk * dl), dl)
+            r = hk[:, None] + a
+            c = hl[:, None] + b
+            rows.append(np.minimum(r, c).ravel())
+            cols.append(np.maximum(r, c).ravel())
+            ok = (hk >= 0) & (hl >= 0)
+            valid.append(np.repeat(ok, len(a)))
+        brow = hk[:, None] + np.arange(dk)
+        gradient_rows.append(np.where(hk[:, None] >= 0, brow, n).ravel())
+    return rows, cols, valid, gradient_rows
+
+
+def gauge_links(block):
+    """Gauge bookkeeping of one block: (pairs of free handles joined by an edge as two lists, anchored handles)."""
+    slots = block.store.slots
+    fh = [block.handles[:, k] for k in range(slots)]
+    isfree = [block.hessian_start[k] >= 0 for k in range(slots)]
+    anyfixed = np.zeros(block.count, dtype=bool)
+    for k in range(slots):
+        anyfixed |= ~isfree[k]
+    link_a, link_b, anchored = [], [], []
+    for k in range(slots):
+        for l in range(k + 1, slots):
+            both = isfree[k] & isfree[l]
+            link_a.append(fh[k][both])
+            link_b.append(fh[l][both])
+        if slots == 1:
+            anchored.append(fh[k][isfree[k]])
+        else:
+            anchored.append(fh[k][isfree[k] & anyfixed])
+    return link_a, link_b, anchored
+
+
+def build_structure(vertex_store, edge_stores):
+    """The ``GraphStructure`` of the current elements; raises GaugeFreedomError if a free component floats."""
+    hessian_index, n, free_handles, groups, free_state_index = free_state_layout(vertex_store)
+    offset = vertex_store.offset.values
+    blocks = []
+    rows_all, cols_all, valid_all, brow_all = [], [], [], []
+    link_a, link_b, anchored = [], [], []
+    for store in edge_stores.values():
+        rows = store.alive_rows()
+        if len(rows) == 0:
+            continue
+        block = edge_class_block(store, rows, offset, hessian_index)
+        blocks.append(block)
+        r, c, ok, br = hessian_contributions(block, n)
+        rows_all += r
+        cols_all += c
+        valid_all += ok
+        brow_all += br
+        a, b, anc = gauge_links(block)
+        link_a += a
+        link_b += b
+        anchored += anc
+
+    check_gauge(free_handles, len(hessian_index), link_a, link_b, anchored, vertex_store.objects)
+
+    if rows_all:
+        rows_c = np.concatenate(rows_all)
+        cols_c = np.concatenate(cols_all)
+        valid_c = np.concatenate(valid_all)
+        brow_c = np.concatenate(brow_all)
+    else:
+        rows_c = cols_c = brow_c = np.zeros(0, dtype=np.int64)
+        valid_c = np.zeros(0, dtype=bool)
+    return GraphStructure(
+        dimension=n, handle_count=vertex_store.count, hessian_index=hessian_index, vertex_groups=groups,
+        manifold=any(g.cls.oplus_jacobian_batch is not None for g in groups), free_state_index=free_state_index,
+        blocks=blocks, pattern=HessianPattern(n, rows_c, cols_c, valid_c), gradient_rows=brow_c)
+
+
+def check_gauge(free_handles, handle_count, link_a, link_b, anchored_handles, vertex_objects):
+    """Raise GaugeFreedomError unless every connected component of free vertices has an anchored vertex.
+
+    ``link_a``/``link_b``: lists of arrays of free handles joined by an edge; ``anchored_handles``: list of arrays
+    of free handles in an edge with a fixed vertex or in a unary edge; ``vertex_objects[h]`` names the vertices.
+    """
+    nf = len(free_handles)
+    if nf == 0:
+        return
+    rank = np.full(handle_count, -1, dtype=np.int64)
+    rank[free_handles] = np.arange(nf)
+    a = rank[np.concatenate(link_a)] if link_a else np.zeros(0, dtype=np.int64)
+    b = rank[np.concatenate(link_b)] if link_b else np.zeros(0, dtype=np.int64)
+    adj = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(nf, nf))
+    ncomp, labels = connected_components(adj, directed=False)
+    anchored = np.zeros(ncomp, dtype=bool)
+    if anchored_handles:
+        anc = rank[np.concatenate(anchored_handles)]
+        anchored[labels[anc]] = True
+    if anchored.all():
+        return
+    bad = np.nonzero(~anchored)[0]
+    comps = [[vertex_objects[h] for h in free_handles[labels == c]] for c in bad[:5]]
+    first = comps[0]
+    names = ", ".join(f"{type(v).__name__} {v.id}" for v in first[:8])
+    more = "" if len(first) <= 8 else f", … ({len(first)} vertices)"
+    raise GaugeFreedomError(
+        f"{len(bad)} connected component(s) of free vertices have no fixed vertex and no unary (prior) edge, "
+        f"so their position is undetermined (gauge freedom); first component: {len(first)} vertices "
+        f"[{names}{more}]. Fix a vertex (set_fixed(True)) or add a prior edge.", comps)

@@ -1,0 +1,242 @@
+"""The optimiser's modules one by one: storage, elements' hooks, structure, linearisation, algorithms, marginals."""
+
+import numpy as np
+import pytest
+
+from helpers.graph import (EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, GraphError, SparseOptimizer,
+                           VertexPointXY, VertexSE2)
+from helpers.graph.algorithms import (ALGORITHMS, GaussNewton, GaussNewtonParams, GTSAMLevenbergMarquardt,
+                                      GTSAMLevenbergMarquardtParams, LevenbergMarquardt, LevenbergMarquardtParams,
+                                      Trial, make_algorithm)
+from helpers.graph.elements import GraphElements
+from helpers.graph.linearise import FreeState, LinearSystem, chi2_at, linearise, total_chi2
+from helpers.graph.marginals import marginal_blocks
+from helpers.graph.storage import EdgeStore, GrowableArray, VertexStore
+from helpers.graph.structure import EdgeClassBlock, GraphStructure, build_structure, check_gauge
+
+
+def chain(n=5, seed=1, full_information=False, fix_first=True):
+    """Poses on a line joined by noisy odometry, one landmark seen from every pose."""
+    rng = np.random.default_rng(seed)
+    g = SparseOptimizer()
+    poses = [VertexSE2(i, [i + rng.normal(0, 0.2), rng.normal(0, 0.2), rng.normal(0, 0.05)],
+                       fixed=fix_first and i == 0) for i in range(n)]
+    point = VertexPointXY(0, [2.0, 3.0])
+    for v in poses + [point]:
+        g.add_vertex(v)
+    info = np.array([[100.0, 10.0, 0.0], [10.0, 100.0, 0.0], [0.0, 0.0, 400.0]]) if full_information \
+        else np.diag([100.0, 100.0, 400.0])
+    for i in range(n - 1):
+        g.add_edge(EdgeSE2([poses[i], poses[i + 1]], measurement=[1.0, 0.0, 0.0], information=info))
+    for i, p in enumerate(poses):
+        d = np.array([2.0 - i, 3.0])
+        g.add_edge(EdgeRangeBearing([p, point], measurement=[np.hypot(*d), np.arctan2(d[1], d[0])],
+                                    information=np.diag([50.0, 200.0])))
+    return g, poses, point
+
+
+def outputs(g):
+    return (g.chi2_history, [s["mu"] for s in g.statistics], [v.estimate.tolist() for v in g.vertices()])
+
+
+# ---------------------------------------------------------------------------------------------------- storage
+def test_growable_array_keeps_rows_across_growth():
+    a = GrowableArray((2,), np.int64, -1)
+    assert a.size == 0 and a.values.shape == (0, 2)
+    assert a.append([1, 2]) == 0
+    assert a.extend(np.arange(60).reshape(30, 2)) == 1
+    assert a.size == 31 and len(a.buffer) >= 31
+    np.testing.assert_array_equal(a.values[0], [1, 2])
+    np.testing.assert_array_equal(a.values[1:], np.arange(60).reshape(30, 2))
+    assert (a.buffer[a.size:] == -1).all()
+
+
+def test_vertex_and_edge_stores_follow_the_graph():
+    g, poses, point = chain(4)
+    store = g._vertex_store
+    assert isinstance(store, VertexStore) and store.count == 5
+    np.testing.assert_array_equal(store.estimate(point._h), [2.0, 3.0])
+    edges = g._edge_stores[EdgeSE2]
+    assert isinstance(edges, EdgeStore) and edges.slots == 2 and edges.slot_dimensions == [3, 3]
+    e = poses[1].edges()[0]
+    g.remove_edge(e)
+    assert not edges.alive.values[0] and edges.objects[0] is None
+    assert store.count == 5  # handles are never reused
+    g.remove_vertex(point)
+    assert point._h == -1 and not store.alive.values[4]
+    np.testing.assert_array_equal(point.estimate, [2.0, 3.0])  # the estimate went back into the object
+
+
+def test_element_hooks_have_clear_names_and_the_old_ones_still_work():
+    for old, new in [("_vertex_estimate", "_read_vertex_estimate"), ("_set_vertex_estimate", "_write_vertex_estimate"),
+                     ("_set_vertex_fixed", "_write_vertex_fixed"), ("_vertex_hessian_index", "_vertex_hessian_start"),
+                     ("_edge_store_row", "_write_edge_values"), ("_edge_set_vertex", "_replace_edge_vertex")]:
+        assert getattr(GraphElements, old) is getattr(GraphElements, new)
+    g, poses, _ = chain(3)
+    g.initialize_optimization()
+    h0 = g.hessian().toarray()
+    poses[2].set_estimate([2.5, 0.3, 0.1])  # value change: H recomputed, structure kept
+    assert not np.allclose(g.hessian().toarray(), h0)
+    assert poses[1].hessian_index == 0
+    poses[1].set_fixed(True)  # structure change
+    assert poses[1].hessian_index is None
+    with pytest.raises(GraphError, match="initialize_optimization"):
+        g.optimize(1)
+
+
+# ---------------------------------------------------------------------------------------------------- structure
+def test_structure_is_a_dataclass_with_readable_fields():
+    g, poses, point = chain(4, full_information=True)
+    g.initialize_optimization()
+    st = g._structure
+    assert isinstance(st, GraphStructure)
+    assert st.dimension == g.dimension == 3 * 3 + 2
+    assert st.hessian_index[poses[0]._h] == -1 and st.hessian_index[poses[1]._h] == 0
+    np.testing.assert_array_equal(st.free_state_index, np.arange(3, 3 * 4 + 2))
+    by_class = {b.store.cls: b for b in st.blocks}
+    assert all(isinstance(b, EdgeClassBlock) for b in st.blocks)
+    assert by_class[EdgeSE2].count == 3 and not by_class[EdgeSE2].diagonal_whitening
+    rb = by_class[EdgeRangeBearing]
+    assert rb.diagonal_whitening and rb.whitening.shape == (4, 2)
+    np.testing.assert_array_equal(rb.hessian_start[1], [9, 9, 9, 9])
+    assert {grp.cls for grp in st.vertex_groups} == {VertexSE2, VertexPointXY}
+
+
+def test_build_structure_and_check_gauge_report_floating_components():
+    g, poses, _ = chain(3, fix_first=False)
+    with pytest.raises(GaugeFreedomError) as err:
+        build_structure(g._vertex_store, g._edge_stores)
+    assert len(err.value.component) == 4
+    g.add_edge(EdgeSE2Prior([poses[0]], measurement=poses[0].estimate, information=np.eye(3)))
+    assert build_structure(g._vertex_store, g._edge_stores).dimension == 3 * 3 + 2
+    check_gauge(np.zeros(0, dtype=np.int64), 0, [], [], [], [])  # nothing free: nothing to check
+
+
+# ---------------------------------------------------------------------------------------------------- linearise
+def test_linearise_matches_the_public_hessian_gradient_and_chi2():
+    g, _, _ = chain(5, full_information=True)
+    g.initialize_optimization()
+    st = g._structure
+    est = g._vertex_store.estimates.buffer
+    system = linearise(st, est)
+    assert isinstance(system, LinearSystem)
+    np.testing.assert_array_equal(st.pattern.full_matrix(system.hessian_data).toarray(), g.hessian().toarray())
+    np.testing.assert_array_equal(system.gradient, g.gradient())
+    assert system.chi2 == pytest.approx(g.chi2(), rel=1e-12)
+    assert chi2_at(st, est) == pytest.approx(total_chi2(g._vertex_store, g._edge_stores), rel=1e-12)
+
+
+def test_free_state_get_set_retract_and_solve():
+    g, poses, _ = chain(4)
+    g.initialize_optimization()
+    state = FreeState(g._structure, g._vertex_store.estimates, g.linear_solver)
+    x = state.get()
+    np.testing.assert_array_equal(x[:3], poses[1].estimate)
+    dx = np.full(len(x), 0.01)
+    state.retract(dx)
+    np.testing.assert_allclose(poses[1].estimate, x[:3] - 0.01)
+    state.set(x)
+    np.testing.assert_array_equal(state.get(), x)
+    system = state.linearise()
+    step = state.solve(system)
+    np.testing.assert_allclose(g.hessian().toarray() @ step, system.gradient, atol=1e-8)
+    damped = state.solve(system, 5.0)
+    np.testing.assert_allclose((g.hessian().toarray() + 5.0 * np.eye(len(x))) @ damped, system.gradient, atol=1e-8)
+
+
+# ---------------------------------------------------------------------------------------------------- algorithms
+def test_trial_reject_restores_and_finish_leaves_the_accepted_state():
+    g, _, _ = chain(4)
+    g.initialize_optimization()
+    state = FreeState(g._structure, g._vertex_store.estimates, g.linear_solver)
+    trial = Trial(state)
+    x0, chi0 = state.get(), trial.chi2
+    dx = trial.solve(1.0)
+    r1 = trial.try_step(dx)
+    assert r1 < chi0
+    trial.reject()
+    np.testing.assert_array_equal(state.get(), x0)
+    r1 = trial.try_step(dx)
+    trial.accept(r1)
+    assert trial.chi2 == r1
+    x1 = state.get()
+    trial.try_step(-10 * dx)
+    system = trial.finish()
+    np.testing.assert_array_equal(state.get(), x1)
+    assert system.chi2 == r1
+    np.testing.assert_array_equal(system.gradient, state.linearise().gradient)
+
+
+@pytest.mark.parametrize("name, params", [("lm", LevenbergMarquardtParams()), ("gn", GaussNewtonParams()),
+                                          ("lm-gtsam", GTSAMLevenbergMarquardtParams())])
+def test_parameters_objects_give_exactly_the_named_algorithm(name, params):
+    a, _, _ = chain(6, full_information=True)
+    b, _, _ = chain(6, full_information=True)
+    a.initialize_optimization()
+    b.initialize_optimization()
+    assert a.optimize(30, algorithm=name) == b.optimize(30, algorithm=params)
+    assert outputs(a) == outputs(b)
+
+
+def test_lm_tau_argument_equals_the_parameters_field():
+    a, _, _ = chain(6)
+    b, _, _ = chain(6)
+    a.initialize_optimization()
+    b.initialize_optimization()
+    assert a.optimize(20, tau=1e-5) == b.optimize(20, algorithm=LevenbergMarquardtParams(tau=1e-5))
+    assert outputs(a) == outputs(b)
+
+
+def test_gtsam_defaults_and_algorithm_table():
+    p = GTSAMLevenbergMarquardtParams()
+    assert (p.initial_lambda, p.lambda_factor, p.max_lambda, p.min_model_fidelity, p.relative_tolerance,
+            p.absolute_tolerance) == (1e-5, 10.0, 1e5, 1e-3, 1e-5, 1e-5)
+    assert LevenbergMarquardtParams().tau == 1e-3 and GaussNewtonParams().tolerance == 1e-5
+    assert set(ALGORITHMS) == {"lm", "gn", "lm-gtsam"}
+    assert isinstance(make_algorithm("gn", gn_tolerance=0.5), GaussNewton)
+    assert make_algorithm("gn", gn_tolerance=0.5).params.tolerance == 0.5
+    assert isinstance(make_algorithm("lm-gtsam"), GTSAMLevenbergMarquardt)
+    assert make_algorithm(LevenbergMarquardtParams(tau=2.0)).params.tau == 2.0
+    assert isinstance(make_algorithm("lm"), LevenbergMarquardt)
+
+
+@pytest.mark.parametrize("make, field", [
+    (lambda: LevenbergMarquardtParams(tau=0.0), "tau"),
+    (lambda: LevenbergMarquardtParams(step_tolerance=-1.0), "step_tolerance"),
+    (lambda: GaussNewtonParams(tolerance=float("nan")), "tolerance"),
+    (lambda: GaussNewtonParams(min_step_fraction=0.0), "min_step_fraction"),
+    (lambda: GTSAMLevenbergMarquardtParams(lambda_factor=1.0), "lambda_factor"),
+    (lambda: GTSAMLevenbergMarquardtParams(initial_lambda="x"), "initial_lambda"),
+])
+def test_bad_parameters_name_the_field(make, field):
+    with pytest.raises(ValueError, match=field):
+        make()
+
+
+def test_optimize_rejects_unknown_algorithms_and_bad_tolerances():
+    g, _, _ = chain(3)
+    g.initialize_optimization()
+    with pytest.raises(ValueError, match="algorithm"):
+        g.optimize(5, algorithm="newton")
+    with pytest.raises(ValueError, match="algorithm"):
+        g.optimize(5, algorithm=42)
+    with pytest.raises(ValueError, match="tolerance"):
+        g.optimize(5, algorithm="gn", gn_tolerance=-1.0)
+    with pytest.raises(ValueError, match="tau"):
+        g.optimize(5, tau=0.0)
+
+
+# ---------------------------------------------------------------------------------------------------- marginals
+def test_marginal_blocks_in_caller_order_with_zero_blocks_for_fixed_vertices():
+    g, poses, point = chain(4)
+    g.initialize_optimization()
+    g.optimize(10)
+    order = [point, poses[0], poses[2]]
+    data = g._current_linear_system().hessian_data
+    out = marginal_blocks(order, g._hessian_index, g.linear_solver, g._structure.pattern, data)
+    assert list(out) == order
+    np.testing.assert_array_equal(out[poses[0]], np.zeros((3, 3)))
+    cov = np.linalg.inv(g.hessian().toarray())
+    np.testing.assert_allclose(out[point], cov[9:11, 9:11], rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(out[poses[2]], cov[3:6, 3:6], rtol=1e-9, atol=1e-14)
+    assert g.linear_solver is g._solver and g.linear_solver.qdldl.factors()[0].nnz > 0
