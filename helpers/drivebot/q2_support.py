@@ -121,7 +121,7 @@ class OnlineRecorder:
     def __call__(self, system, k):
         optimised = system.recommend_optimization()
         if optimised:
-            solver = system.graph._solver
+            solver = system.graph.linear_solver
             if solver.qdldl is not None:
                 self.factor_nnz[int(k)] = int(solver.qdldl.factors()[0].nnz)
         if system.step_number % self.every == 0:

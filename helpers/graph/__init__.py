@@ -107,8 +107,11 @@ information (E, m, m) or (m, m), **params)`` — vectorised validation, same res
 Performance model: adding an element is O(1) (amortised arrays); ``initialize_optimization`` is vectorised over
 edges (gather indices, Hessian pattern); the first factorisation of a pattern builds a ``qdldl.Solver`` (AMD
 ordering, symbolic LDLᵀ); each iteration calls every edge class's ``evaluate`` once, scatters JᵀΩJ with
-``np.bincount`` and refactorises with ``Solver.update``. Marginals: Takahashi sparse inverse on qdldl's L, no dense
-inverse.
+``np.bincount`` and refactorises with ``Solver.update``. Marginals: Takahashi sparse inverse on qdldl's L (``marginals``), no dense
+inverse. Modules by responsibility: ``storage`` / ``elements`` (growable arrays, add/remove), ``structure``
+(indexing, sparsity pattern, gauge check), ``linearise`` (evaluate, whiten, assemble H and b), ``algorithms``
+(Gauss–Newton, the coursework's LM, GTSAM's LM schedule; parameter dataclasses), ``linear`` (qdldl LDLᵀ),
+``marginals``, ``kernels`` (compiled fast paths, each tested equal to its edge's ``evaluate_reference``).
 
 Per-object API (from ``BaseEdge``): ``set_vertex(k, v)``, ``vertex(k)``, ``vertices()``, ``set_measurement``,
 ``set_information`` (must be symmetric positive definite), ``measurement``, ``information``, ``error()``,
@@ -126,10 +129,11 @@ from .edge import BaseEdge, batch_matrix, check_information, numeric_jacobians
 from .edges2d import (EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
                       EdgeSE2PointXY, EdgeSE2Prior)
 from .errors import GaugeFreedomError, GraphError
+from .algorithms import GaussNewtonParams, GTSAMLevenbergMarquardtParams, LevenbergMarquardtParams
 from .optimizer import SparseOptimizer
 from .vertex import BaseVertex, VertexPointXY, VertexSE2, VertexSE2Exp
 
-__all__ = ["wrap_angle", "wrap_angle_mod", "BaseVertex", "VertexSE2", "VertexSE2Exp", "VertexPointXY", "BaseEdge",
+__all__ = ["GaussNewtonParams", "LevenbergMarquardtParams", "GTSAMLevenbergMarquardtParams", "wrap_angle", "wrap_angle_mod", "BaseVertex", "VertexSE2", "VertexSE2Exp", "VertexPointXY", "BaseEdge",
            "check_information", "batch_matrix", "numeric_jacobians", "EdgeSE2", "EdgeSE2Prior", "EdgePositionPrior",
            "EdgeHeadingPrior", "EdgeRangeBearing", "EdgePointPrior", "EdgeSE2PointXY", "SparseOptimizer", "GraphError",
            "GaugeFreedomError"]
