@@ -157,3 +157,12 @@ def test_run_trials_repeat_keeps_results_and_times_best_call():
     for bad in (0, 1.5, True):
         with pytest.raises(ValueError, match="repeat"):
             run_trials(ALGS, 1, 0, repeat=bad, **SCENE)
+
+
+def test_wilson_interval_contains_the_estimate_at_the_ends():
+    # at p̂ = 1 the formula's upper end is 1 − ε for some n (e.g. n = 30); error bars need lo ≤ p̂ ≤ hi exactly
+    n = np.arange(1, 400)
+    for k in (n, np.zeros_like(n), n // 2):
+        lo, hi = wilson_interval(k, n)
+        p = k / n
+        assert np.all(lo <= p) and np.all(p <= hi)

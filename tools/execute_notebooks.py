@@ -19,6 +19,14 @@ from nbclient import NotebookClient
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
+def _shown(path: pathlib.Path) -> str:
+    """A path relative to the workbook when it is inside it, else as given (copies elsewhere work too)."""
+    try:
+        return str(path.resolve().relative_to(ROOT))
+    except ValueError:
+        return str(path)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("notebooks", nargs="*", type=pathlib.Path)
@@ -34,16 +42,16 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     for k, path in enumerate(paths, start=1):
         path = path.resolve()
-        print(f"[{k}/{len(paths)}] {path.relative_to(ROOT)} ...", end=" ", flush=True)
+        print(f"[{k}/{len(paths)}] {_shown(path)} ...", end=" ", flush=True)
         start = time.perf_counter()
         nb = nbformat.read(path, as_version=4)
         client = NotebookClient(nb, timeout=args.timeout, kernel_name="python3",
                                 resources={"metadata": {"path": str(path.parent)}})
         client.execute()
-        target = path if args.inplace else (ROOT / args.output_dir / path.name)
+        target = path if args.inplace else ((ROOT / args.output_dir).resolve() / path.name)
         target.parent.mkdir(parents=True, exist_ok=True)
         nbformat.write(nb, target)
-        print(f"{time.perf_counter() - start:.1f} s -> {target.relative_to(ROOT)}", flush=True)
+        print(f"{time.perf_counter() - start:.1f} s -> {_shown(target)}", flush=True)
     return 0
 
 

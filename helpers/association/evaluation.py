@@ -156,8 +156,9 @@ def wilson_interval(successes, trials, confidence: float = 0.95):
     den = 1.0 + z * z / n_safe
     centre = (p + z * z / (2.0 * n_safe)) / den
     half = z * np.sqrt(p * (1.0 - p) / n_safe + z * z / (4.0 * n_safe * n_safe)) / den
-    lo = np.where(n > 0, np.clip(centre - half, 0.0, 1.0), 0.0)
-    hi = np.where(n > 0, np.clip(centre + half, 0.0, 1.0), 1.0)
+    # the interval contains p̂ exactly; min/max only remove round-off (e.g. hi = 1 − ε at p̂ = 1)
+    lo = np.where(n > 0, np.minimum(np.clip(centre - half, 0.0, 1.0), p), 0.0)
+    hi = np.where(n > 0, np.maximum(np.clip(centre + half, 0.0, 1.0), p), 1.0)
     return lo, hi
 
 

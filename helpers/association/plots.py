@@ -140,7 +140,7 @@ def plot_rate_sweep(ax, results, key: str, confidence: float = 0.95, names=None,
         rate = np.array([results[v].summary()[name][key] for v in results])
         ci = np.array([results[v].interval(name, key, confidence) for v in results])
         shift = jitter * (j - 0.5 * (len(names) - 1))
-        ax.errorbar(xs + shift, rate, yerr=np.vstack([rate - ci[:, 0], ci[:, 1] - rate]), capsize=2.5,
+        ax.errorbar(xs + shift, rate, yerr=np.clip(np.vstack([rate - ci[:, 0], ci[:, 1] - rate]), 0.0, None), capsize=2.5,
                     ms=5, label=name, **algorithm_style(name))
 
 
