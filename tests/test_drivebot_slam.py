@@ -204,3 +204,15 @@ def test_run_variants_equals_separate_runs_and_keeps_going_after_a_failure():
         run_variants("q3_a", {"bad": {"laser_detection_range": 10.0}})
     with pytest.raises(ValueError, match="non-empty dict"):
         run_variants("q3_a", {})
+
+
+def test_graph_statistics_counts_every_edge_class_by_its_measurement_dimension():
+    res = run_question("q1_b", maximum_step_number=20)
+    before = res.graph_statistics()
+    from helpers.graph import EdgeSE2  # a class DriveBot itself never adds (e.g. a user's loop closure)
+
+    a, b = res.system.vehicle_vertices[5], res.system.vehicle_vertices[9]
+    res.system.graph.add_edge(EdgeSE2([a, b], measurement=[0.5, 0.0, 0.0]))
+    after = res.system.graph_statistics()
+    assert after["measurement_dimensions"] == before["measurement_dimensions"] + 3
+    assert after["edges_by_type"]["EdgeSE2"] == 1 and after["dof"] == before["dof"] + 3

@@ -356,10 +356,9 @@ class DriveBotSLAMSystem:
         n_vehicle = sum(isinstance(v, VehicleVertex) for v in verts)
         n_landmark = sum(isinstance(v, LandmarkVertex) for v in verts)
         free_dims = sum(type(v).dimension for v in verts if not v.fixed)
-        by_type = Counter(type(e).__name__ for e in self.graph.edges())
-        dims = {"VehicleKinematicsEdge": 3, "EdgeHeadingPrior": 1, "BuggyCompassEdge": 1,
-                "EdgePositionPrior": 2, "EdgeRangeBearing": 2, "EdgeSE2Prior": 3}
-        meas = sum(dims.get(k, 0) * n for k, n in by_type.items())
+        by_class = Counter(type(e) for e in self.graph.edges())
+        by_type = {cls.__name__: n for cls, n in by_class.items()}
+        meas = sum(cls.measurement_dimension * n for cls, n in by_class.items())  # each class knows its m
         n_obs = by_type.get("EdgeRangeBearing", 0)
         return {
             "vehicle_vertices": n_vehicle,
