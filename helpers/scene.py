@@ -258,48 +258,9 @@ def _normalised_rays(camera, width, height):
     return xn, yn, dark
 
 
-def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=None,
-                     occluder_half: float = 0.03, card: bool = True, supersample: int = 4,
-                     blur_sigma: float = 0.6, noise_sigma: float = 1.5) -> RenderedScene:
-    """Render the lab scene at the camera's resolution (1920 × 1440 for the lab camera).
-
-    Parameters
-    ----------
-    camera : helpers.camera.Camera (full 12-coefficient model).
-    pose : true camera pose [rCNn; Θnc] (default ``REFERENCE_POSE``, the Lab 8 handout).
-    seed : seeds the texture and the sensor noise (same seed → same bytes).
-    markers : (3, k) world points that get a fiducial: points with z = 0 get a sticker on the plane,
-        others (z < 0, camera side) a floating card if ``card``. Default: the lab landmarks off the
-        board (0–4, 7, 8); landmarks 5 and 6 are board corners.
-    occluders : (2, q) plane positions (x, y) covered by a blank grey square of half-size
-        ``occluder_half`` m (hides stickers and texture there). Default: none.
-    supersample : s × s samples per pixel for the sharp-edged objects (board, stickers, cards; 1–8);
-        the texture is anti-aliased analytically. blur_sigma : optics blur (px, ≥ 0).
-    noise_sigma : sensor noise standard deviation in grey levels (≥ 0).
-    """
-    _check_camera(camera)
-    pose = REFERENCE_POSE.copy() if pose is None else _check_pose(pose)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    markers = LAB_LANDMARKS[[0, 1, 2, 3, 4, 7, 8]].T if markers is None else _check_points(markers, "markers", 3)
-    occluders = np.zeros((2, 0)) if occluders is None else _check_points(occluders, "occluders", 2)
-    if not (np.isfinite(occluder_half) and occluder_half > 0):
-        raise ValueError(f"occluder_half must be a positive length in metres, got {occluder_half!r}")
-    if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 8:
-        raise ValueError(f"supersample must be an integer in 1..8, got {supersample!r}")
-    if not (np.isfinite(blur_sigma) and blur_sigma >= 0):
-        raise ValueError(f"blur_sigma must be a non-negative number of pixels, got {blur_sigma!r}")
-    if not (np.isfinite(noise_sigma) and noise_sigma >= 0):
-        raise ValueError(f"noise_sigma must be a non-negative number of grey levels, got {noise_sigma!r}")
-    on_plane = markers[2] == 0.0
-    plane_markers = markers[:2, on_plane]
-    card_markers = markers[:, ~on_plane] if card else np.zeros((3, 0))
-    if np.any(card_markers[2] >= 0):
-        raise ValueError("markers off the plane must lie on the camera side (z < 0)")
-
-    W, H = camera.image_size
-    rng = np.random.default_rng(seed)
-    lattices = _make_lattices(rng)
+def _plane_intersector(pose):
+    """f(x, y, z0): where the rays of normalised image points (x, y) meet the plane z = z0 (world frame);
+    rays that never reach the plane give inf."""
     r = pose[:3]
     Rnc = rpy2rot(pose[3:])
 
@@ -312,17 +273,29 @@ def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=N
         t = np.where(t > 0, t, np.inf)                     # rays that never reach the plane
         return r[0] + t * dx, r[1] + t * dy
 
-    xn, yn, dark = _normalised_rays(camera, W, H)
-    X, Y = intersect(xn, yn, 0.0)
-    X = np.where(np.isfinite(X), X, 1e3)
-    Y = np.where(np.isfinite(Y), Y, 1e3)
-    # footprint of a pixel on the plane: sqrt |det ∂(X, Y)/∂(u, v)|
-    Xu, Xv = np.gradient(X, axis=1), np.gradient(X, axis=0)
-    Yu, Yv = np.gradient(Y, axis=1), np.gradient(Y, axis=0)
-    footprint = np.sqrt(np.abs(Xu * Yv - Xv * Yu)).astype(np.float32)
-    albedo = _texture(X.astype(np.float32), Y.astype(np.float32), footprint, lattices).astype(float)
+    return intersect
 
-    # sharp objects: find the pixels near them, then supersample only those
+
+def _check_render_arguments(seed, markers, occluders, occluder_half, supersample, blur_sigma, noise_sigma):
+    """Validated (markers (3, k), occluders (2, q)) with the defaults filled in; ValueError names the argument."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    markers = LAB_LANDMARKS[[0, 1, 2, 3, 4, 7, 8]].T if markers is None else _check_points(markers, "markers", 3)
+    occluders = np.zeros((2, 0)) if occluders is None else _check_points(occluders, "occluders", 2)
+    if not (np.isfinite(occluder_half) and occluder_half > 0):
+        raise ValueError(f"occluder_half must be a positive length in metres, got {occluder_half!r}")
+    if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 8:
+        raise ValueError(f"supersample must be an integer in 1..8, got {supersample!r}")
+    if not (np.isfinite(blur_sigma) and blur_sigma >= 0):
+        raise ValueError(f"blur_sigma must be a non-negative number of pixels, got {blur_sigma!r}")
+    if not (np.isfinite(noise_sigma) and noise_sigma >= 0):
+        raise ValueError(f"noise_sigma must be a non-negative number of grey levels, got {noise_sigma!r}")
+    return markers, occluders
+
+
+def _sharp_objects(albedo, intersect, xn, yn, X, Y, Xu, Xv, Yu, Yv, plane_markers, occluders, occluder_half,
+                   card_markers, supersample):
+    """Supersample the albedo (in place) at the pixels near the board, stickers, occluders and cards."""
     pad = 2.0 * np.hypot(np.hypot(Xu, Xv), np.hypot(Yu, Yv))
     x0, x1, y0, y1 = _sheet_bounds()
     near = (X > x0 - pad) & (X < x1 + pad) & (Y > y0 - pad) & (Y < y1 + pad)
@@ -348,7 +321,10 @@ def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=N
                              plane_markers, occluders, occluder_half, card_markers)
         albedo[iy, ix] = vals.mean(axis=1)
 
-    # shading: smooth illumination over the plane and radial vignetting; black beyond the lens fold
+
+def _expose(camera, albedo, X, Y, dark, W, H):
+    """Grey levels before blur and noise: smooth illumination over the plane, radial vignetting, and black
+    beyond the lens fold."""
     light = 0.88 + 0.12 * np.tanh(1.5 * (0.6 * np.clip(X, -5, 5) + 0.4 * np.clip(Y, -5, 5)))
     uu = (np.arange(W) - W / 2) / (W / 2)
     vv = (np.arange(H) - H / 2) / (W / 2)
@@ -362,6 +338,54 @@ def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=N
         r_edge = rd[dark].min() * fx - 4.0                             # px, just inside the first dark pixel
         keep = _smoothstep01((r_edge - rd * fx) / 25.0)
         img = 6.0 + (img - 6.0) * keep
+    return img
+
+
+def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=None,
+                     occluder_half: float = 0.03, card: bool = True, supersample: int = 4,
+                     blur_sigma: float = 0.6, noise_sigma: float = 1.5) -> RenderedScene:
+    """Render the lab scene at the camera's resolution (1920 × 1440 for the lab camera).
+
+    Parameters
+    ----------
+    camera : helpers.camera.Camera (full 12-coefficient model).
+    pose : true camera pose [rCNn; Θnc] (default ``REFERENCE_POSE``, the Lab 8 handout).
+    seed : seeds the texture and the sensor noise (same seed → same bytes).
+    markers : (3, k) world points that get a fiducial: points with z = 0 get a sticker on the plane,
+        others (z < 0, camera side) a floating card if ``card``. Default: the lab landmarks off the
+        board (0–4, 7, 8); landmarks 5 and 6 are board corners.
+    occluders : (2, q) plane positions (x, y) covered by a blank grey square of half-size
+        ``occluder_half`` m (hides stickers and texture there). Default: none.
+    supersample : s × s samples per pixel for the sharp-edged objects (board, stickers, cards; 1–8);
+        the texture is anti-aliased analytically. blur_sigma : optics blur (px, ≥ 0).
+    noise_sigma : sensor noise standard deviation in grey levels (≥ 0).
+    """
+    _check_camera(camera)
+    pose = REFERENCE_POSE.copy() if pose is None else _check_pose(pose)
+    markers, occluders = _check_render_arguments(seed, markers, occluders, occluder_half, supersample,
+                                                 blur_sigma, noise_sigma)
+    on_plane = markers[2] == 0.0
+    plane_markers = markers[:2, on_plane]
+    card_markers = markers[:, ~on_plane] if card else np.zeros((3, 0))
+    if np.any(card_markers[2] >= 0):
+        raise ValueError("markers off the plane must lie on the camera side (z < 0)")
+
+    W, H = camera.image_size
+    rng = np.random.default_rng(seed)
+    lattices = _make_lattices(rng)
+    intersect = _plane_intersector(pose)
+    xn, yn, dark = _normalised_rays(camera, W, H)
+    X, Y = intersect(xn, yn, 0.0)
+    X = np.where(np.isfinite(X), X, 1e3)
+    Y = np.where(np.isfinite(Y), Y, 1e3)
+    # footprint of a pixel on the plane: sqrt |det ∂(X, Y)/∂(u, v)|
+    Xu, Xv = np.gradient(X, axis=1), np.gradient(X, axis=0)
+    Yu, Yv = np.gradient(Y, axis=1), np.gradient(Y, axis=0)
+    footprint = np.sqrt(np.abs(Xu * Yv - Xv * Yu)).astype(np.float32)
+    albedo = _texture(X.astype(np.float32), Y.astype(np.float32), footprint, lattices).astype(float)
+    _sharp_objects(albedo, intersect, xn, yn, X, Y, Xu, Xv, Yu, Yv, plane_markers, occluders, occluder_half,
+                   card_markers, supersample)   # board, stickers, occluders and cards: supersampled
+    img = _expose(camera, albedo, X, Y, dark, W, H)
     if blur_sigma > 0:
         img = cv2.GaussianBlur(img, (0, 0), blur_sigma)
     if noise_sigma > 0:

@@ -135,21 +135,10 @@ def observe_points(pose, landmarks):
 
 
 
-def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size: float = 30.0,
-                           n_visible: int | None = 30, max_range: float | None = None,
-                           p_detect: float = 1.0, n_clutter: int = 2,
-                           pose_sigma=(0.5, 0.5, np.deg2rad(8.0)), pose_correlation=None,
-                           landmark_sigma: float = 0.05, meas_sigma: float = 0.1,
-                           candidate_range: float | None = None) -> Scenario:
-    """Draw one scenario (see the module docstring). Give ``seed`` (int or sequence) or a ``rng``.
-
-    n_visible: the sensor sees the n_visible nearest landmarks (None: all within max_range).
-    max_range: sensor range (with n_visible=None it decides visibility; otherwise it is ignored).
-    candidate_range: landmarks whose *estimated* range is ≤ candidate_range are the candidates (None:
-    every landmark). Clutter is uniform in the sensed disc (radius = range of the farthest visible
-    landmark, or max_range).
-    """
-    rng = _generator(seed, rng)
+def _check_scenario_arguments(n_landmarks, size, n_visible, max_range, p_detect, n_clutter, pose_sigma,
+                              pose_correlation, landmark_sigma, meas_sigma, candidate_range):
+    """The checked scenario settings (ValueError names the argument); returns
+    (size, landmark_sigma, meas_sigma, max_range, candidate_range, pose σ (3,), pose correlation (3×3))."""
     for name, value, lo in (("n_landmarks", n_landmarks, 1), ("n_clutter", n_clutter, 0)):
         if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < lo:
             raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
@@ -173,6 +162,48 @@ def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size:
     if corr.shape != (3, 3) or not np.allclose(corr, corr.T) or not np.allclose(np.diag(corr), 1.0) \
             or np.min(np.linalg.eigvalsh(corr)) <= 0:
         raise ValueError("pose_correlation must be a 3×3 symmetric positive-definite matrix with unit diagonal")
+    return size, landmark_sigma, meas_sigma, max_range, candidate_range, sig, corr
+
+
+def _candidate_density(pose_est, pose_cov, lm_candidates, landmark_sigma, meas_sigma):
+    """(state, density): the Gaussian state [pose; candidate landmarks] and, through the linearised
+    measurement model z = h(x) with noise σ_z² I, the joint predicted-measurement density of the candidates."""
+    n = lm_candidates.shape[0]
+    S_state = np.zeros((3 + 2 * n, 3 + 2 * n))
+    S_state[:3, :3] = np.linalg.cholesky(pose_cov).T
+    S_state[3:, 3:] = landmark_sigma * np.eye(2 * n)
+    state = Gaussian(np.concatenate([pose_est, lm_candidates.ravel()]), S_state)
+
+    def h(x):
+        z, J_pose, J_lm = observe_points(x[:3], x[3:].reshape(n, 2))
+        J = np.zeros((2 * n, 3 + 2 * n))
+        J[:, :3] = J_pose.reshape(2 * n, 3)
+        rows = np.arange(2 * n).reshape(n, 2)
+        J[rows[:, :, None], 3 + rows[:, None, :]] = J_lm[None, :, :]
+        return z.ravel(), J
+
+    density = state.transform(h, noise=Gaussian(np.zeros(2 * n), meas_sigma * np.eye(2 * n)))
+    return state, density
+
+
+def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size: float = 30.0,
+                           n_visible: int | None = 30, max_range: float | None = None,
+                           p_detect: float = 1.0, n_clutter: int = 2,
+                           pose_sigma=(0.5, 0.5, np.deg2rad(8.0)), pose_correlation=None,
+                           landmark_sigma: float = 0.05, meas_sigma: float = 0.1,
+                           candidate_range: float | None = None) -> Scenario:
+    """Draw one scenario (see the module docstring). Give ``seed`` (int or sequence) or a ``rng``.
+
+    n_visible: the sensor sees the n_visible nearest landmarks (None: all within max_range).
+    max_range: sensor range (with n_visible=None it decides visibility; otherwise it is ignored).
+    candidate_range: landmarks whose *estimated* range is ≤ candidate_range are the candidates (None:
+    every landmark). Clutter is uniform in the sensed disc (radius = range of the farthest visible
+    landmark, or max_range).
+    """
+    rng = _generator(seed, rng)
+    size, landmark_sigma, meas_sigma, max_range, candidate_range, sig, corr = _check_scenario_arguments(
+        n_landmarks, size, n_visible, max_range, p_detect, n_clutter, pose_sigma, pose_correlation,
+        landmark_sigma, meas_sigma, candidate_range)
 
     # --- truth and estimate ---------------------------------------------------------------------------
     lm_true = rng.uniform(0.0, size, (n_landmarks, 2))
@@ -209,20 +240,7 @@ def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size:
         if candidates.size == 0:
             candidates = np.array([int(np.argmin(np.hypot(z_est[:, 0], z_est[:, 1])))])
     n = candidates.size
-    S_state = np.zeros((3 + 2 * n, 3 + 2 * n))
-    S_state[:3, :3] = np.linalg.cholesky(pose_cov).T
-    S_state[3:, 3:] = landmark_sigma * np.eye(2 * n)
-    state = Gaussian(np.concatenate([pose_est, lm_est[candidates].ravel()]), S_state)
-
-    def h(x):
-        z, J_pose, J_lm = observe_points(x[:3], x[3:].reshape(n, 2))
-        J = np.zeros((2 * n, 3 + 2 * n))
-        J[:, :3] = J_pose.reshape(2 * n, 3)
-        rows = np.arange(2 * n).reshape(n, 2)
-        J[rows[:, :, None], 3 + rows[:, None, :]] = J_lm[None, :, :]
-        return z.ravel(), J
-
-    density = state.transform(h, noise=Gaussian(np.zeros(2 * n), meas_sigma * np.eye(2 * n)))
+    state, density = _candidate_density(pose_est, pose_cov, lm_est[candidates], landmark_sigma, meas_sigma)
     truth = np.full(n, -1, dtype=np.intp)
     position = np.full(n_landmarks, -1, dtype=np.intp)
     position[candidates] = np.arange(n)
