@@ -52,6 +52,18 @@ def test_interval_mask_and_shading():
     plt.close(fig)
 
 
+def test_mark_gaps_and_closure_on_every_axis():
+    fig, axes = plt.subplots(2, 1)
+    q2.mark_gaps_and_closure(axes, np.array([[2, 3], [7, 7]]), 0.1, closure=5)
+    for ax in axes:
+        assert len(ax.patches) == 2 and len(ax.lines) == 1
+        assert ax.lines[0].get_xdata()[0] == pytest.approx(0.5)
+        assert ax.get_legend_handles_labels()[1] == ["no landmark in range", "loop closure"]
+    q2.mark_gaps_and_closure(axes[0], np.zeros((0, 2), int), 0.1)      # no gaps, no closure: nothing drawn
+    assert len(axes[0].patches) == 2 and len(axes[0].lines) == 1
+    plt.close(fig)
+
+
 def test_mean_rate():
     t = np.arange(6.0)
     y = np.r_[0, 1, 2, 2, 2, 5]

@@ -57,6 +57,22 @@ def test_seed_summary_and_table(evaluation):
     assert len(lines) == 4 and "edges" in lines[0] and "failed" in lines[3] and "±" in lines[1]
 
 
+def test_paired_and_relative_table(evaluation):
+    ev, _ = evaluation
+    pairs = q3.paired(ev, "keep 1", "full", "landmark_edges")
+    assert pairs == [(ev["keep 1"][s]["landmark_edges"], ev["full"][s]["landmark_edges"]) for s in (0, 1)]
+    assert q3.paired(ev, "remove all", "full", "edges") == []          # every run of the variant failed
+    with pytest.raises(ValueError, match="unknown variant"):
+        q3.paired(ev, "nope", "full", "edges")
+    lines = q3.format_relative(ev, "full").splitlines()
+    assert len(lines) == 3 and lines[0] == f"{'full':>24}: edges removed     0, landmark edges 1.00, " \
+                                           "nnz(H) 1.00, median position variance ×1.0"
+    ratio = np.mean([p for p, _ in pairs]) / np.mean([f for _, f in pairs])
+    assert f"landmark edges {ratio:.2f}" in lines[1]
+    with pytest.raises(ValueError, match="reference"):
+        q3.format_relative(ev, "nope")
+
+
 def test_plots(evaluation):
     ev, _ = evaluation
     ok = {k: v for k, v in ev.items() if k != "remove all"}

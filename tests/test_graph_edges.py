@@ -186,3 +186,16 @@ def test_protocol_example_from_the_package_docstring():
     g.initialize_optimization()
     assert g.optimize(20) < 1e-20
     np.testing.assert_allclose(b.estimate, [0.2 * np.cos(0.3), 0.2 * np.sin(0.3), 0.35], atol=1e-9)
+
+
+def test_information_from_covariance_is_the_validated_cached_inverse():
+    from helpers.graph import information_from_covariance
+    cov = np.array([[2.0, 0.5], [0.5, 1.0]])
+    info = information_from_covariance(cov)
+    np.testing.assert_allclose(info @ cov, np.eye(2), atol=1e-14)
+    assert np.array_equal(info, info.T) and not info.flags.writeable
+    assert information_from_covariance(cov.copy()) is info                  # cached by value
+    for bad, msg in [(np.diag([1.0, -1.0]), "positive definite"), (np.array([[1.0, 2.0], [0.0, 1.0]]), "symmetric"),
+                     (np.full((2, 2), np.nan), "finite"), (np.ones(3), "square"), ("abc", "numeric")]:
+        with pytest.raises(ValueError, match=f"cov.*{msg}|{msg}"):
+            information_from_covariance(bad, "cov")

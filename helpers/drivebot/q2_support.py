@@ -4,7 +4,8 @@
   range" bands of the covariance and χ² plots), computed from the observation ticks, never typed in. A single
   tick without an observation is the laser's timing dither (each scan comes 0.1 s + U(0, 0.01) s after the
   previous one, so about one tick in 20 has no scan), not an empty view; ``min_ticks`` = 2 skips those.
-* ``shade_intervals`` — draw such intervals as grey bands on time axes.
+* ``shade_intervals`` — draw such intervals as grey bands on time axes; ``mark_gaps_and_closure`` draws them
+  and the loop-closure time on every axis of a figure.
 * ``landmark_facts`` — per landmark: position, nearest route corner and its distance, number of observations,
   first/last observing tick and the vehicle's mean true speed while observing it.
 * ``OnlineRecorder`` — a ``step_hook`` for ``run_question`` that records the *online* (filtered) marginal
@@ -18,9 +19,11 @@ import numbers
 
 import numpy as np
 
+from ..figures import COLORS
 from ..validation import int_array, integer
 
-__all__ = ["no_observation_intervals", "interval_mask", "shade_intervals", "landmark_facts", "OnlineRecorder",
+__all__ = ["no_observation_intervals", "interval_mask", "shade_intervals", "mark_gaps_and_closure",
+           "landmark_facts", "OnlineRecorder",
            "mean_rate", "waypoint_ticks"]
 
 
@@ -66,6 +69,16 @@ def shade_intervals(ax, intervals, dt, label=None, color="0.85"):
     iv = np.asarray(intervals).reshape(-1, 2)
     for i, (a, b) in enumerate(iv):
         ax.axvspan(dt * a, dt * (b + 1), color=color, lw=0, zorder=0, label=label if i == 0 else None)
+
+
+def mark_gaps_and_closure(axes, intervals, dt, closure=None, color=None):
+    """On each axis of ``axes``: the no-observation ``intervals`` as grey bands (labelled "no landmark in
+    range") and, if ``closure`` (a tick) is not None, a dotted vertical line at its time ("loop closure")."""
+    color = COLORS["muted"] if color is None else color
+    for ax in np.ravel(axes):
+        shade_intervals(ax, intervals, dt, label="no landmark in range")
+        if closure is not None:
+            ax.axvline(dt * closure, color=color, ls=":", lw=1.2, label="loop closure")
 
 
 def landmark_facts(results, tick, landmark) -> dict:

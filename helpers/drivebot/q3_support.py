@@ -30,7 +30,7 @@ from .analysis import position_error_rms
 from .runner import run_variants
 
 __all__ = ["run_metrics", "evaluate_seeds", "seed_summary", "format_seed_table", "plot_seed_bars",
-           "failures", "spy_hessian", "METRIC_LABELS"]
+           "failures", "spy_hessian", "paired", "format_relative", "METRIC_LABELS"]
 
 #: axis labels (with units) of the metrics, for plots
 METRIC_LABELS = {
@@ -139,6 +139,33 @@ def format_seed_table(evaluation, columns) -> str:
     lines = ["".ljust(name_w) + " ".join(h.rjust(widths[m]) for m, h, _ in columns)]
     for n in evaluation:
         lines.append(n.rjust(name_w - 1) + " " + " ".join(cells[m][n].rjust(widths[m]) for m, _, _ in columns))
+    return "\n".join(lines)
+
+
+def paired(evaluation, name, reference, metric) -> list:
+    """[(value of ``name``, value of ``reference``)] of one metric, for each seed in which both runs succeeded."""
+    for n in (name, reference):
+        if n not in evaluation:
+            raise ValueError(f"unknown variant {n!r}; the evaluation has {list(evaluation)}")
+    runs, ref = evaluation[name], evaluation[reference]
+    return [(runs[s][metric], ref[s][metric]) for s in runs
+            if s in ref and "failed" not in runs[s] and "failed" not in ref[s]]
+
+
+def format_relative(evaluation, reference, name_width=24) -> str:
+    """One line per variant comparing its seed means with ``reference``'s: edges removed, landmark edges and
+    non-zeros of H as fractions of the reference's, and the median position variance as a factor."""
+    if reference not in evaluation:
+        raise ValueError(f"unknown reference variant {reference!r}; the evaluation has {list(evaluation)}")
+    mean = {m: {n: v[0] for n, v in seed_summary(evaluation, m).items()}
+            for m in ("edges", "landmark_edges", "hessian_nnz", "pos_var_median")}
+    width = max(name_width, *(len(n) for n in evaluation))
+    lines = []
+    for n in evaluation:
+        ratio = {m: mean[m][n] / mean[m][reference] for m in ("landmark_edges", "hessian_nnz", "pos_var_median")}
+        lines.append(f"{n:>{width}}: edges removed {mean['edges'][reference] - mean['edges'][n]:5.0f}, "
+                     f"landmark edges {ratio['landmark_edges']:.2f}, nnz(H) {ratio['hessian_nnz']:.2f}, "
+                     f"median position variance ×{ratio['pos_var_median']:.1f}")
     return "\n".join(lines)
 
 

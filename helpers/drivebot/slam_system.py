@@ -34,9 +34,10 @@ from typing import Callable
 
 import numpy as np
 
-from ..graph import BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2Prior, SparseOptimizer, wrap_angle
+from ..graph import (BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2Prior,
+                     SparseOptimizer, information_from_covariance)
 from .config import SimulatorConfiguration
-from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex
+from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex, predict
 from .events import Event, EventType
 
 __all__ = ["DriveBotSLAMSystem", "check_period"]
@@ -106,7 +107,6 @@ class DriveBotSLAMSystem:
         self.verbose = False
         self._u = np.zeros(3)
         self._u_info = None
-        self._info_cache = {}
         self._removal_done_upto = 0  # process_model_edges[:k] have already been through removal
         self._built = False          # structure current for the graph as it is now
 
@@ -141,15 +141,10 @@ class DriveBotSLAMSystem:
                     self._handle_landmarks(event)
         self.step_number += 1
 
-    def _information(self, cov):
-        """Ω = cov⁻¹ (exact inverse), cached by value: the simulator repeats the same few covariances."""
-        key = cov.tobytes()
-        info = self._info_cache.get(key)
-        if info is None:
-            info = np.linalg.inv(cov)
-            info = 0.5 * (info + info.T)
-            self._info_cache[key] = info
-        return info
+    @staticmethod
+    def _information(cov):
+        """Ω = cov⁻¹ (exact inverse, validated; cached by value: the simulator repeats the same few covariances)."""
+        return information_from_covariance(cov, "event covariance")
 
     def _check_enabled(self, flag, event):
         if not getattr(self.config, flag):
@@ -165,7 +160,7 @@ class DriveBotSLAMSystem:
         if np.linalg.det(P0) < 1e-6:
             v.set_fixed(True)
         else:  # never in DriveBot (P0 = 0), kept for completeness: a unary prior with Ω = P0⁻¹
-            self.graph.add_edge(EdgeSE2Prior([v], measurement=event.data, information=np.linalg.inv(P0)))
+            self.graph.add_edge(EdgeSE2Prior([v], measurement=event.data, information=information_from_covariance(P0, "initial covariance")))
         self.vehicle_vertices.append(v)
         self.current_vehicle_vertex = v
         self.current_time = event.time
@@ -183,10 +178,7 @@ class DriveBotSLAMSystem:
             # Q3a: the current vertex lost its only edge at the last optimisation and was deleted; the new
             # prediction edge reconnects it, so it re-enters the graph with its last estimate.
             self.graph.add_vertex(prev)
-        x, u = prev.estimate, self._u
-        c, s = math.cos(x[2]), math.sin(x[2])  # forward prediction x + ΔT M(ψ) u (scalar form of edges.predict)
-        est = np.array([x[0] + dt * (c * u[0] - s * u[1]), x[1] + dt * (s * u[0] + c * u[1]),
-                        wrap_angle(x[2] + dt * u[2])])
+        est = predict(prev.estimate, self._u, dt)        # x + ΔT M(ψ) u, ψ wrapped (edges.predict)
         v = VehicleVertex(time, id=len(self.vehicle_vertices), estimate=est)
         self.graph.add_vertex(v)
         e = VehicleKinematicsEdge([prev, v], measurement=self._u, information=self._u_info, dt=dt)

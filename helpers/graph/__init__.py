@@ -125,7 +125,7 @@ bearing)), EdgePointPrior, EdgeSE2PointXY (g2o's EDGE_SE2_XY). Angles: ``wrap_an
 
 from . import kernels
 from .angles import wrap_angle, wrap_angle_mod
-from .edge import BaseEdge, batch_matrix, check_information, numeric_jacobians
+from .edge import BaseEdge, batch_matrix, check_information, information_from_covariance, numeric_jacobians
 from .edges2d import (EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
                       EdgeSE2PointXY, EdgeSE2Prior)
 from .errors import GaugeFreedomError, GraphError
@@ -134,6 +134,6 @@ from .optimizer import SparseOptimizer
 from .vertex import BaseVertex, VertexPointXY, VertexSE2, VertexSE2Exp
 
 __all__ = ["GaussNewtonParams", "LevenbergMarquardtParams", "GTSAMLevenbergMarquardtParams", "wrap_angle", "wrap_angle_mod", "BaseVertex", "VertexSE2", "VertexSE2Exp", "VertexPointXY", "BaseEdge",
-           "check_information", "batch_matrix", "numeric_jacobians", "EdgeSE2", "EdgeSE2Prior", "EdgePositionPrior",
+           "check_information", "information_from_covariance", "batch_matrix", "numeric_jacobians", "EdgeSE2", "EdgeSE2Prior", "EdgePositionPrior",
            "EdgeHeadingPrior", "EdgeRangeBearing", "EdgePointPrior", "EdgeSE2PointXY", "SparseOptimizer", "GraphError",
            "GaugeFreedomError"]

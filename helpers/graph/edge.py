@@ -30,10 +30,18 @@ from .angles import wrap_angle
 from .errors import GraphError
 from .vertex import BaseVertex, _as_vector
 
-__all__ = ["BaseEdge", "check_information", "batch_matrix", "numeric_jacobians"]
+__all__ = ["BaseEdge", "check_information", "information_from_covariance", "batch_matrix", "numeric_jacobians"]
 
 
+#: validated information matrices (and inverted covariances), keyed by kind and value; bounded
 _INFO_CACHE = {}
+
+
+def _cache_put(key, value):
+    if len(_INFO_CACHE) > 4096:
+        _INFO_CACHE.clear()
+    _INFO_CACHE[key] = value
+    return value
 
 
 def check_information(info, m, name="information"):
@@ -49,7 +57,7 @@ def check_information(info, m, name="information"):
         arr = arr.reshape(1, 1)
     if arr.shape != (m, m):
         raise ValueError(f"{name} must have shape ({m}, {m}), got {arr.shape}")
-    key = arr.tobytes()
+    key = ("information", arr.tobytes())
     hit = _INFO_CACHE.get(key)
     if hit is not None:
         return hit
@@ -68,10 +76,29 @@ def check_information(info, m, name="information"):
     out = (arr, lower.T.copy())
     out[0].flags.writeable = False
     out[1].flags.writeable = False
-    if len(_INFO_CACHE) > 4096:
-        _INFO_CACHE.clear()
-    _INFO_CACHE[key] = out
-    return out
+    return _cache_put(key, out)
+
+
+def information_from_covariance(cov, name="covariance"):
+    """Ω = Σ⁻¹ for a symmetric positive-definite covariance Σ (the exact inverse, symmetrised), read-only.
+
+    Cached by value with :func:`check_information`'s cache: a simulator repeats the same few covariances.
+    """
+    try:
+        arr = np.array(cov, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a numeric square matrix, got {cov!r}") from None
+    if arr.ndim != 2 or arr.shape[0] != arr.shape[1] or arr.shape[0] == 0:
+        raise ValueError(f"{name} must be a non-empty square matrix, got shape {arr.shape}")
+    key = ("covariance", arr.tobytes(), arr.shape[0])
+    hit = _INFO_CACHE.get(key)
+    if hit is not None:
+        return hit
+    sym, _ = check_information(arr, arr.shape[0], name)      # the same checks: finite, symmetric, SPD
+    info = np.linalg.inv(arr)
+    info = 0.5 * (info + info.T)
+    info.flags.writeable = False
+    return _cache_put(key, info)
 
 
 def check_information_batch(info, m, name="information"):
