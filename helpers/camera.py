@@ -33,18 +33,19 @@ Jacobians are (2, 3) / (N, 2, 3).
 """
 from __future__ import annotations
 
-import numbers
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
-from .camera_io import read_camera_xml, write_camera_xml
+from .camera_io import (CALIB_RATIONAL_MODEL, CALIB_THIN_PRISM_MODEL, CALIB_TILTED_MODEL, _REQUIRED_FLAGS,
+                        check_calibration, read_camera_xml, write_camera_xml)
 from .paths import data_dir
 from .rotation import rot2rpy, rpy2rot, rpy2rot_derivatives
+from .validation import float_array, integer, positive_number
 
 __all__ = [
     "Camera",
+    "ProjectionError",
     "PoseJacobians",
     "FOVAngles",
     "CALIB_RATIONAL_MODEL",
@@ -54,10 +55,6 @@ __all__ = [
     "load_lab_camera",
 ]
 
-CALIB_RATIONAL_MODEL = 16384
-CALIB_THIN_PRISM_MODEL = 32768
-CALIB_TILTED_MODEL = 262144
-_REQUIRED_FLAGS = CALIB_RATIONAL_MODEL | CALIB_THIN_PRISM_MODEL
 
 
 def load_lab_camera() -> "Camera":
@@ -85,8 +82,18 @@ class FOVAngles(NamedTuple):
     diagonal: float
 
 
+class ProjectionError(ValueError):
+    """World point(s) behind the camera (z ≤ 0 in {c}) or beyond the lens fold (off-axis angle ≥
+    ``max_off_axis_angle()``): no valid pixel. ``columns``: offending columns; ``reason``: "behind" / "fold"."""
+
+    def __init__(self, message, columns, reason):
+        super().__init__(message)
+        self.columns = np.asarray(columns, dtype=np.intp)
+        self.reason = reason
+
+
 def _points(P, name, rows=3):
-    P = np.asarray(P, dtype=float)
+    P = float_array(P, name)
     if P.ndim not in (1, 2) or P.shape[0] != rows:
         raise ValueError(f"{name} must have shape ({rows},) or ({rows}, N), got {P.shape}")
     if not np.all(np.isfinite(P)):
@@ -95,12 +102,22 @@ def _points(P, name, rows=3):
 
 
 def _pose(eta, name):
-    eta = np.asarray(eta, dtype=float)
+    eta = float_array(eta, name)
     if eta.shape != (6,):
         raise ValueError(f"{name} must have shape (6,) = [position (3); roll, pitch, yaw (3)], got {eta.shape}")
     if not np.all(np.isfinite(eta)):
         raise ValueError(f"{name} must be finite (no NaN/inf)")
     return eta
+
+
+def _non_finite_pixel_message(P, u, v, finite):
+    """Why columns of rPCc give no finite pixel: x/z, y/z overflow, or the denominator 1 + β vanishes."""
+    bad = np.flatnonzero(~finite)
+    with np.errstate(over="ignore", invalid="ignore"):
+        rho = u[bad] * u[bad] + v[bad] * v[bad]
+    why = ("too far off the optical axis (|x/z| or |y/z| overflows)" if not np.all(rho < 1e150)
+           else "where the distortion denominator 1 + β vanishes")
+    return f"rPCc has point(s) at column(s) {bad.tolist()} (e.g. {P[:, bad[0]].tolist()}) {why}: no finite pixel"
 
 
 class Camera:
@@ -118,42 +135,23 @@ class Camera:
     """
 
     def __init__(self, K, dist_coeffs, image_size, r_cb_b=None, R_bc=None, flags: int = _REQUIRED_FLAGS):
-        K = np.array(K, dtype=float)
-        if K.shape != (3, 3) or not np.all(np.isfinite(K)):
-            raise ValueError(f"K must be a finite (3, 3) camera matrix, got shape {K.shape}")
-        if K[0, 1] != 0 or K[1, 0] != 0 or K[2, 0] != 0 or K[2, 1] != 0 or K[2, 2] != 1:
-            raise ValueError("K must have the form [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew)")
-        if K[0, 0] <= 0 or K[1, 1] <= 0:
-            raise ValueError(f"K must have positive focal lengths, got fx={K[0, 0]}, fy={K[1, 1]}")
-        d = np.asarray(dist_coeffs, dtype=float).ravel()
-        if d.size not in (4, 5, 8, 12):
-            raise ValueError(f"dist_coeffs must have 12 entries (k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4), got {d.size}")
-        if not np.all(np.isfinite(d)):
-            raise ValueError("dist_coeffs must be finite (no NaN/inf)")
-        d = np.concatenate([d, np.zeros(12 - d.size)])
-        size = np.asarray(image_size)
-        if size.shape != (2,) or not np.all(np.isfinite(size.astype(float))) or np.any(size != np.round(size)) \
-                or np.any(size <= 0):
-            raise ValueError(f"image_size must be two positive integers (width, height), got {image_size!r}")
-        r_cb_b = np.zeros(3) if r_cb_b is None else np.array(r_cb_b, dtype=float)
+        K, d, size, flags = check_calibration(K, dist_coeffs, image_size, flags)
+        r_cb_b = np.zeros(3) if r_cb_b is None else np.array(float_array(r_cb_b, "r_cb_b"))
         if r_cb_b.shape != (3,) or not np.all(np.isfinite(r_cb_b)):
             raise ValueError(f"r_cb_b must be a finite vector of shape (3,), got shape {r_cb_b.shape}")
-        R_bc = np.eye(3) if R_bc is None else np.array(R_bc, dtype=float)
+        R_bc = np.eye(3) if R_bc is None else np.array(float_array(R_bc, "R_bc"))
         if R_bc.shape != (3, 3) or not np.all(np.isfinite(R_bc)) or not np.allclose(R_bc.T @ R_bc, np.eye(3),
                                                                                      atol=1e-9) \
                 or np.linalg.det(R_bc) <= 0:
             raise ValueError("R_bc must be a (3, 3) rotation matrix")
-        if isinstance(flags, bool) or not isinstance(flags, numbers.Integral):
-            raise ValueError(f"flags must be an integer, got {flags!r}")
-        if (flags & _REQUIRED_FLAGS) != _REQUIRED_FLAGS or flags & CALIB_TILTED_MODEL:
-            raise ValueError(f"flags must include CALIB_RATIONAL_MODEL and CALIB_THIN_PRISM_MODEL and not "
-                             f"CALIB_TILTED_MODEL, got {flags}")
         self.K = K
         self.dist_coeffs = d
-        self.image_size = (int(size[0]), int(size[1]))
+        self.image_size = size
         self.r_cb_b = r_cb_b
         self.R_bc = R_bc
-        self.flags = int(flags)
+        self.flags = flags
+        for array in (K, d, r_cb_b, R_bc):       # read-only: fold_radius and the model depend on them
+            array.setflags(write=False)
         self.fold_radius = self._fold_radius()
 
     # -- convenience -----------------------------------------------------------------------------------
@@ -174,7 +172,6 @@ class Camera:
     def from_xml(cls, path) -> "Camera":
         """Read an OpenCV FileStorage file with a map ``camera`` holding ``camera_matrix`` (3×3),
         ``distortion_coefficients`` (12×1), ``flags`` (int) and ``imageSize`` (2 ints: width height)."""
-        path = Path(path)
         K, d, image_size, flags = read_camera_xml(path)
         try:
             return cls(K, d, image_size, flags=flags)
@@ -208,8 +205,8 @@ class Camera:
 
     def distort(self, u, v):
         """The lens model in normalised coordinates: (u, v) = (x/z, y/z) ↦ (u', v') (arrays broadcast)."""
-        u = np.asarray(u, dtype=float)
-        v = np.asarray(v, dtype=float)
+        u = float_array(u, "u")
+        v = float_array(v, "v")
         if not (np.all(np.isfinite(u)) and np.all(np.isfinite(v))):
             raise ValueError("u and v must be finite (no NaN/inf)")
         return self._distort(u, v, False)
@@ -225,12 +222,13 @@ class Camera:
         x, y, z = P
         if np.any(z == 0):
             raise ValueError("rPCc has points with z = 0 (in the camera's focal plane); they have no pixel")
-        u, v = x / z, y / z
         fx, fy, cx, cy = self.K[0, 0], self.K[1, 1], self.K[0, 2], self.K[1, 2]
-        out = self._distort(u, v, return_jacobian)
-        Q = np.vstack([fx * out[0] + cx, fy * out[1] + cy])
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):   # diagnosed below instead
+            u, v = x / z, y / z
+            out = self._distort(u, v, return_jacobian)
+            Q = np.vstack([fx * out[0] + cx, fy * out[1] + cy])
         if not np.all(np.isfinite(Q)):
-            raise ValueError("rPCc gives a non-finite pixel (distortion denominator 1 + β vanishes)")
+            raise ValueError(_non_finite_pixel_message(P, u, v, np.all(np.isfinite(Q), axis=0)))
         if not return_jacobian:
             return Q[:, 0] if single else Q
         _, _, duu, duv, dvu, dvv = out
@@ -244,6 +242,8 @@ class Camera:
         J[:, 1, 0] = fy * dvu * iz
         J[:, 1, 1] = fy * dvv * iz
         J[:, 1, 2] = -fy * (dvu * u + dvv * v) * iz
+        if not np.all(np.isfinite(J)):
+            raise ValueError(_non_finite_pixel_message(P, u, v, np.all(np.isfinite(J), axis=(1, 2))))
         return (Q[:, 0], J[0]) if single else (Q, J)
 
     def world_to_vector(self, rPNn, eta) -> np.ndarray:
@@ -255,6 +255,17 @@ class Camera:
         d = P - (eta[:3] if P.ndim == 1 else eta[:3, None])
         return Rnc.T @ d
 
+    def _check_projectable(self, rPCc, single):
+        """ProjectionError naming ``rPNn`` for world points behind the camera or beyond the lens fold."""
+        bad, reason = np.flatnonzero(~(rPCc[2] > 0)), "behind the camera (camera-frame z ≤ 0)"
+        if bad.size == 0:
+            bad = np.flatnonzero(np.arctan2(np.hypot(rPCc[0], rPCc[1]), rPCc[2]) >= self.max_off_axis_angle())
+            reason = f"beyond the lens fold (off-axis angle ≥ {np.degrees(self.max_off_axis_angle()):.1f}°)"
+        if bad.size:
+            raise ProjectionError(f"rPNn: {'the point' if single else f'column(s) {bad.tolist()}'} lie(s) "
+                                  f"{reason}: no valid pixel (rPCc = {np.round(rPCc[:, bad[0]], 6).tolist()})",
+                                  bad, "behind" if reason.startswith("behind") else "fold")
+
     def _world_to_pixel(self, P, r, Theta, A, t, return_jacobian):
         """Shared core: rPCc = A (Rᵀ (P − r) − t), R = rpy2rot(Θ)."""
         single = P.ndim == 1
@@ -262,6 +273,7 @@ class Camera:
         R, *dR = rpy2rot_derivatives(Theta)
         d = P - r[:, None]
         rPCc = A @ (R.T @ d - t[:, None])
+        self._check_projectable(rPCc, single)
         if not return_jacobian:
             Q = self.vector_to_pixel(rPCc)
             return Q[:, 0] if single else Q
@@ -342,6 +354,10 @@ class Camera:
         the extreme corners of a strongly distorting wide-angle lens) has no exact preimage: with
         ``strict`` it raises ValueError, otherwise the least-squares preimage (at the fold) is returned.
         """
+        if not isinstance(strict, (bool, np.bool_)):
+            raise ValueError(f"strict must be True or False, got {strict!r}")
+        tol = positive_number(tol, "tol")
+        max_iter = integer(max_iter, "max_iter", minimum=1)
         Qp = _points(pixels, "pixels", rows=2)
         single = Qp.ndim == 1
         Qp = Qp.reshape(2, -1)

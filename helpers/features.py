@@ -25,6 +25,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .validation import finite_number, integer
+
 __all__ = ["Features", "corner_response", "detect_features", "METHODS"]
 
 METHODS = ("shi-tomasi", "harris")
@@ -42,6 +44,14 @@ class Features:
     x: np.ndarray
     y: np.ndarray
     method: str = "shi-tomasi"
+
+    def __post_init__(self):
+        arrays = (self.score, self.x, self.y)
+        if not all(isinstance(a, np.ndarray) and a.ndim == 1 for a in arrays) or len({a.size for a in arrays}) != 1:
+            raise ValueError(f"score, x and y must be 1-D arrays of one length, got shapes "
+                             f"{[np.shape(a) for a in arrays]}")
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
 
     def __len__(self) -> int:
         return int(self.score.shape[0])
@@ -83,15 +93,17 @@ def corner_response(image, method: str = "shi-tomasi", block_size: int = 5, aper
     ``image`` is uint8 (scaled to [0, 1]) or float gray, or uint8 BGR. ``method`` is ``"shi-tomasi"``
     (R = λ2, the smaller eigenvalue of the structure tensor) or ``"harris"`` (R = det M − k (tr M)²).
     """
-    if method not in METHODS:
+    if not isinstance(method, str) or method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    if not isinstance(block_size, (int, np.integer)) or block_size < 2:
-        raise ValueError(f"block_size must be an integer ≥ 2, got {block_size!r}")
-    if aperture_size not in (1, 3, 5, 7):
+    block_size = integer(block_size, "block_size", minimum=2)
+    if isinstance(aperture_size, bool) or aperture_size not in (1, 3, 5, 7):
         raise ValueError(f"aperture_size must be 1, 3, 5 or 7, got {aperture_size!r}")
-    if not (np.isfinite(harris_k) and 0.0 < harris_k < 0.25):
+    if not 0.0 < finite_number(harris_k, "harris_k") < 0.25:
         raise ValueError(f"harris_k must lie in (0, 0.25), got {harris_k!r}")
     gray = _as_gray_float(image)
+    if block_size > min(gray.shape):
+        raise ValueError(f"block_size must not exceed the image's smaller side ({min(gray.shape)} px): the "
+                         f"window must fit in the image, got {block_size}")
     if method == "shi-tomasi":
         return cv2.cornerMinEigenVal(gray, int(block_size), ksize=int(aperture_size))
     return cv2.cornerHarris(gray, int(block_size), int(aperture_size), float(harris_k))
@@ -124,13 +136,11 @@ def detect_features(image, max_features: int = 10000, method: str = "shi-tomasi"
     """
     if isinstance(max_features, bool) or not isinstance(max_features, (int, np.integer)) or max_features < 1:
         raise ValueError(f"max_features must be a positive integer, got {max_features!r}")
-    if not (isinstance(threshold, (int, float, np.floating)) and np.isfinite(threshold) and 0.0 <= threshold < 1.0):
+    if not 0.0 <= finite_number(threshold, "threshold") < 1.0:
         raise ValueError(f"threshold must be a relative level in [0, 1), got {threshold!r}")
-    if not isinstance(nms_radius, (int, np.integer)) or nms_radius < 0:
-        raise ValueError(f"nms_radius must be a non-negative integer, got {nms_radius!r}")
-    if not isinstance(border, (int, np.integer)) or border < 0:
-        raise ValueError(f"border must be a non-negative integer, got {border!r}")
-    if not (isinstance(smoothing, (int, float, np.floating)) and np.isfinite(smoothing) and smoothing >= 0):
+    nms_radius = integer(nms_radius, "nms_radius", minimum=0)
+    border = integer(border, "border", minimum=0)
+    if not finite_number(smoothing, "smoothing") >= 0:
         raise ValueError(f"smoothing must be a non-negative number of pixels, got {smoothing!r}")
     R = corner_response(image, method, block_size, aperture_size, harris_k)
     if smoothing > 0:

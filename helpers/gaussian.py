@@ -28,7 +28,7 @@ import numbers
 import numpy as np
 from scipy import linalg, special
 
-from .validation import finite_vector, index_list
+from .validation import finite_vector, float_array, index_list
 
 __all__ = ["Gaussian", "chi2inv", "chi2_interval", "normcdf", "confidence_level", "square_r_factor"]
 
@@ -42,8 +42,8 @@ def chi2inv(p, nu):
     Equals ``scipy.stats.chi2.ppf(p, nu)``. ``p`` must lie in [0, 1), ``nu`` must be positive.
     Scalars give a float; arrays broadcast.
     """
-    p_arr = np.asarray(p, dtype=float)
-    nu_arr = np.asarray(nu, dtype=float)
+    p_arr = float_array(p, "p")
+    nu_arr = float_array(nu, "nu")
     if not np.all(np.isfinite(p_arr)) or np.any(p_arr < 0) or np.any(p_arr >= 1):
         raise ValueError(f"p must lie in [0, 1), got {p!r}")
     if not np.all(np.isfinite(nu_arr)) or np.any(nu_arr <= 0):
@@ -54,7 +54,7 @@ def chi2inv(p, nu):
 
 def normcdf(w):
     """Standard normal CDF Φ(w) = ½ erfc(−w/√2). Scalars give a float; arrays broadcast."""
-    w_arr = np.asarray(w, dtype=float)
+    w_arr = float_array(w, "w")
     if np.any(np.isnan(w_arr)):
         raise ValueError(f"w must not be NaN, got {w!r}")
     out = special.ndtr(w_arr)
@@ -91,7 +91,7 @@ def _check_n_sigma(n_sigma):
 # validation helpers
 # ----------------------------------------------------------------------------------------------------
 def _as_upper(S, name, n=None):
-    S = np.array(S, dtype=float)  # copy: a Gaussian owns its square root
+    S = np.array(float_array(S, name))  # copy: a Gaussian owns its square root
     if S.ndim != 2 or S.shape[0] != S.shape[1]:
         raise ValueError(f"{name} must be a square 2-D array, got shape {S.shape}")
     if n is not None and S.shape[0] != n:
@@ -107,7 +107,13 @@ def _as_upper(S, name, n=None):
 
 def square_r_factor(A) -> np.ndarray:
     """The k × k upper-triangular R with AᵀA = RᵀR for A of shape (r, k): the top k rows of A's QR factor,
-    zero-padded when r < k (r = 0 gives zeros). The one QR step behind marginal, conditional and transform."""
+    zero-padded when r < k (r = 0 gives zeros). The one QR step behind marginal, conditional and transform.
+    ``A`` must be a finite 2-D array (ValueError naming ``A`` otherwise)."""
+    A = float_array(A, "A")
+    if A.ndim != 2:
+        raise ValueError(f"A must be a 2-D array (r, k), got shape {A.shape}")
+    if not np.all(np.isfinite(A)):
+        raise ValueError("A must be finite (no NaN/inf)")
     k = A.shape[1]
     out = np.zeros((k, k))
     if A.shape[0] == 0:
@@ -133,7 +139,7 @@ class Gaussian:
     __slots__ = ("_mu", "_S")
 
     def __init__(self, mu, S):
-        mu = finite_vector(mu, "mu")
+        mu = finite_vector(float_array(mu, "mu"), "mu")
         if mu.size == 0:
             raise ValueError("mu must have at least one element")
         self._mu = mu.copy()
@@ -143,7 +149,7 @@ class Gaussian:
     @classmethod
     def from_sqrt_cov(cls, S) -> "Gaussian":
         """Zero-mean Gaussian N(0, SᵀS) (used for additive noise)."""
-        S = np.asarray(S, dtype=float)
+        S = float_array(S, "S")
         if S.ndim != 2:
             raise ValueError(f"S must be a square 2-D array, got shape {S.shape}")
         return cls(np.zeros(S.shape[0]), S)
@@ -151,8 +157,8 @@ class Gaussian:
     @classmethod
     def from_cov(cls, mu, P) -> "Gaussian":
         """N(μ, P) from a dense covariance: S = Lᵀ with P = L Lᵀ (Cholesky). P must be symmetric PD."""
-        mu = finite_vector(mu, "mu")
-        P = np.asarray(P, dtype=float)
+        mu = finite_vector(float_array(mu, "mu"), "mu")
+        P = float_array(P, "P")
         if P.shape != (mu.size, mu.size):
             raise ValueError(f"P must have shape ({mu.size}, {mu.size}), got {P.shape}")
         if not np.all(np.isfinite(P)):
@@ -186,8 +192,14 @@ class Gaussian:
 
     @property
     def cov(self) -> np.ndarray:
-        """P = SᵀS, shape (n, n)."""
-        return self._S.T @ self._S
+        """P = SᵀS, shape (n, n). ValueError when an entry of P overflows float64 (|S| near 1e154 or more):
+        the square-root operations still work then, the dense covariance cannot be formed."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            P = self._S.T @ self._S
+        if not np.all(np.isfinite(P)):
+            raise ValueError(f"S is too large for a dense covariance: SᵀS overflows float64 (max |S| = "
+                             f"{np.max(np.abs(self._S)):.3g}); use sqrt_cov and the square-root operations")
+        return P
 
     @property
     def size(self) -> int:
@@ -229,9 +241,9 @@ class Gaussian:
         out = h(self._mu.copy())
         if not isinstance(out, tuple) or len(out) != 2:
             raise ValueError("h must return a tuple (y, J)")
-        y = finite_vector(out[0], "h(x)[0] (y)")
+        y = finite_vector(float_array(out[0], "h(x)[0] (y)"), "h(x)[0] (y)")
         m = y.size
-        J = np.asarray(out[1], dtype=float)
+        J = float_array(out[1], "h(x)[1] (the Jacobian J)")
         if J.shape != (m, self.size):
             raise ValueError(f"h(x)[1] (the Jacobian J) must have shape ({m}, {self.size}), got {J.shape}")
         if not np.all(np.isfinite(J)):
@@ -254,7 +266,7 @@ class Gaussian:
 
     def _whiten(self, X, name="x"):
         """w with Sᵀ w = X − μ, for X of shape (n,) or (n, m)."""
-        X = np.asarray(X, dtype=float)
+        X = float_array(X, name)
         if X.ndim not in (1, 2) or X.shape[0] != self.size:
             raise ValueError(f"{name} must have shape ({self.size},) or ({self.size}, m), got {X.shape}")
         if not np.all(np.isfinite(X)):
@@ -275,7 +287,7 @@ class Gaussian:
         Returns the value (float), or ``(value, grad)``, ``(value, hess)`` or ``(value, grad, hess)`` with
         grad = −P⁻¹(x − μ) (shape (n,)) and hess = −P⁻¹ (shape (n, n)).
         """
-        x = np.asarray(x, dtype=float)
+        x = float_array(x, "x")
         if x.ndim != 1:
             raise ValueError(f"x must have shape ({self.size},), got {x.shape}")
         w = self._whiten(x, "x")

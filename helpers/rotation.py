@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .validation import float_array
+
 __all__ = [
     "skew",
     "rotx",
@@ -35,7 +37,7 @@ __all__ = [
 
 
 def _angle(a, name):
-    a = np.asarray(a, dtype=float)
+    a = float_array(a, name)
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{name} must be finite, got {a!r}")
     return a
@@ -43,7 +45,7 @@ def _angle(a, name):
 
 def skew(v) -> np.ndarray:
     """Cross-product matrix S(v) with S(v) w = v × w; v of shape (3,) → (3, 3)."""
-    v = np.asarray(v, dtype=float)
+    v = float_array(v, "v")
     if v.shape != (3,) or not np.all(np.isfinite(v)):
         raise ValueError(f"v must be a finite vector of shape (3,), got shape {v.shape}")
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
@@ -87,7 +89,7 @@ def rotz(psi, return_derivative: bool = False):
 
 
 def _rpy(Theta):
-    Theta = np.asarray(Theta, dtype=float)
+    Theta = float_array(Theta, "Theta")
     if Theta.ndim not in (1, 2) or Theta.shape[0] != 3:
         raise ValueError(f"Theta must have shape (3,) or (3, N) (roll, pitch, yaw), got {Theta.shape}")
     if not np.all(np.isfinite(Theta)):
@@ -120,7 +122,7 @@ def rot2rpy(R) -> np.ndarray:
     φ = atan2(R21, R22), θ = atan2(−R20, hypot(R21, R22)), ψ = atan2(R10, R00). The result satisfies
     rpy2rot(rot2rpy(R)) = R (it is one of the two equivalent angle sets, with θ ∈ [−π/2, π/2]).
     """
-    R = np.asarray(R, dtype=float)
+    R = float_array(R, "R")
     if R.ndim not in (2, 3) or R.shape[-2:] != (3, 3):
         raise ValueError(f"R must have shape (3, 3) or (N, 3, 3), got {R.shape}")
     if not np.all(np.isfinite(R)):

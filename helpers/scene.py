@@ -44,6 +44,7 @@ from scipy.interpolate import RectBivariateSpline
 
 from .rotation import rot2rpy, rpy2rot
 from .state_slam import LAB_DEMO_CAMERA_POSE, lab_demo_state
+from .validation import finite_number, float_array, integer, positive_number
 
 __all__ = [
     "REFERENCE_POSE",
@@ -113,7 +114,8 @@ class RenderedScene:
 
 def board_points(pattern_size=PATTERN_SIZE, square_size=SQUARE_SIZE) -> np.ndarray:
     """Inner-corner positions (j·a, i·a, 0) for rows i and columns j, row-major, shape (3, nx·ny)."""
-    nx, ny = pattern_size
+    nx, ny = _check_pattern(pattern_size)
+    square_size = positive_number(square_size, "square_size")
     j, i = np.meshgrid(np.arange(nx), np.arange(ny))
     return np.vstack([j.ravel() * square_size, i.ravel() * square_size, np.zeros(nx * ny)])
 
@@ -127,15 +129,22 @@ def _check_camera(camera):
             raise ValueError(f"camera must be a helpers.camera.Camera, got {type(camera).__name__}")
 
 
+def _check_pattern(pattern_size):
+    """(nx, ny): inner corners per row and column, each an integer ≥ 3 (OpenCV's chessboard detector)."""
+    if not isinstance(pattern_size, (tuple, list, np.ndarray)) or len(pattern_size) != 2:
+        raise ValueError(f"pattern_size must be (nx, ny) inner corners, got {pattern_size!r}")
+    return tuple(integer(n, "pattern_size", minimum=3) for n in pattern_size)
+
+
 def _check_pose(pose, name="pose"):
-    pose = np.asarray(pose, dtype=float).ravel()
+    pose = float_array(pose, name).ravel()
     if pose.shape != (6,) or not np.all(np.isfinite(pose)):
         raise ValueError(f"{name} must be a finite camera pose [rCNn (3); Θnc (3)], got shape {pose.shape}")
     return pose
 
 
 def _check_points(P, name, rows):
-    P = np.asarray(P, dtype=float)
+    P = float_array(P, name)
     if P.ndim == 1 and P.size == 0:
         P = P.reshape(rows, 0)
     if P.ndim != 2 or P.shape[0] != rows or not np.all(np.isfinite(P)):
@@ -282,13 +291,13 @@ def _check_render_arguments(seed, markers, occluders, occluder_half, supersample
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     markers = LAB_LANDMARKS[[0, 1, 2, 3, 4, 7, 8]].T if markers is None else _check_points(markers, "markers", 3)
     occluders = np.zeros((2, 0)) if occluders is None else _check_points(occluders, "occluders", 2)
-    if not (np.isfinite(occluder_half) and occluder_half > 0):
+    if not finite_number(occluder_half, "occluder_half") > 0:
         raise ValueError(f"occluder_half must be a positive length in metres, got {occluder_half!r}")
     if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 8:
         raise ValueError(f"supersample must be an integer in 1..8, got {supersample!r}")
-    if not (np.isfinite(blur_sigma) and blur_sigma >= 0):
+    if finite_number(blur_sigma, "blur_sigma") < 0:
         raise ValueError(f"blur_sigma must be a non-negative number of pixels, got {blur_sigma!r}")
-    if not (np.isfinite(noise_sigma) and noise_sigma >= 0):
+    if finite_number(noise_sigma, "noise_sigma") < 0:
         raise ValueError(f"noise_sigma must be a non-negative number of grey levels, got {noise_sigma!r}")
     return markers, occluders
 
@@ -401,8 +410,11 @@ def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=N
 def find_board_corners(image, pattern_size=PATTERN_SIZE) -> np.ndarray:
     """Inner chessboard corners (2, nx·ny), sub-pixel refined, in OpenCV's order (row-major from the first
     corner). Raises ChessboardNotFoundError when the board is not found."""
-    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim not in (2, 3):
-        raise ValueError(f"image must be a uint8 gray or BGR image, got {type(image).__name__}")
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim not in (2, 3) \
+            or (image.ndim == 3 and image.shape[2] != 3) or min(image.shape[:2]) < 8:
+        raise ValueError(f"image must be a uint8 gray or BGR image of at least 8 × 8 pixels, got "
+                         f"{type(image).__name__} {getattr(image, 'dtype', '')} {np.shape(image)}")
+    pattern_size = _check_pattern(pattern_size)
     gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     found, corners = cv2.findChessboardCorners(gray, tuple(pattern_size), flags=flags)
@@ -421,6 +433,7 @@ def recover_pose(image, camera, pattern_size=PATTERN_SIZE, square_size=SQUARE_SI
     Returns (pose (6,), corners (2, nx·ny)).
     """
     _check_camera(camera)
+    square_size = positive_number(square_size, "square_size")
     corners = find_board_corners(image, pattern_size)
     obj = board_points(pattern_size, square_size).T.astype(np.float64)
     ok, rvec, tvec = cv2.solvePnP(obj, corners.T.astype(np.float64), camera.K, camera.dist_coeffs,

@@ -11,6 +11,7 @@ import numpy as np
 
 from .rotation import rpy2rot
 from .scene import CARD_HALF, STICKER_HALF, _check_camera, _check_pose, _ray_splines
+from .validation import finite_number, float_array, rng_seed
 
 __all__ = ["pixel_to_plane", "fiducial_half_size", "ray_interpolation_error"]
 
@@ -21,8 +22,7 @@ def pixel_to_plane(camera, pose, pixels, z0: float = 0.0) -> np.ndarray:
     t = (z0 − r_z)/(Rnc v)_z. Rays that never reach the plane (t ≤ 0) give NaN. Returns (3,) or (3, N)."""
     _check_camera(camera)
     pose = _check_pose(pose)
-    if not np.isfinite(z0):
-        raise ValueError(f"z0 must be a finite plane height in metres, got {z0!r}")
+    z0 = finite_number(z0, "z0")
     V = camera.pixel_to_vector(pixels, strict=False)
     d = rpy2rot(pose[3:]) @ V
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -34,7 +34,7 @@ def pixel_to_plane(camera, pose, pixels, z0: float = 0.0) -> np.ndarray:
 def fiducial_half_size(marker) -> float:
     """Half-size (m) of the white square that carries the checker of a fiducial at world point ``marker``:
     a sticker on the plane (z = 0) or a floating card (z < 0)."""
-    marker = np.asarray(marker, dtype=float)
+    marker = float_array(marker, "marker")
     if marker.shape != (3,) or not np.all(np.isfinite(marker)):
         raise ValueError(f"marker must be a finite world point of shape (3,), got shape {marker.shape}")
     return STICKER_HALF if marker[2] == 0.0 else CARD_HALF
@@ -47,7 +47,8 @@ def ray_interpolation_error(camera, n_samples: int = 2000, seed: int = 0, inside
     _check_camera(camera)
     if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 1:
         raise ValueError(f"n_samples must be a positive integer, got {n_samples!r}")
-    if not (np.isfinite(inside) and 0 < inside <= 1):
+    seed = rng_seed(seed)
+    if not 0 < finite_number(inside, "inside") <= 1:
         raise ValueError(f"inside must lie in (0, 1], got {inside!r}")
     W, H = camera.image_size
     fx, fy, cx, cy = camera.K[0, 0], camera.K[1, 1], camera.K[0, 2], camera.K[1, 2]

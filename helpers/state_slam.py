@@ -22,10 +22,10 @@ import numbers
 
 import numpy as np
 
-from .camera import Camera
+from .camera import Camera, ProjectionError
 from .gaussian import Gaussian
 from .rotation import rot2rpy, rpy2rot
-from .validation import index_list
+from .validation import float_array, index_list, integer
 
 __all__ = ["StateSLAM", "lab_demo_state", "LAB_DEMO_CAMERA_POSE"]
 
@@ -61,9 +61,12 @@ class StateSLAM:
         return (self.size - 12) // 3
 
     @staticmethod
-    def landmark_indices(j: int) -> np.ndarray:
-        """State indices [12 + 3j, 13 + 3j, 14 + 3j] of landmark j."""
-        return 12 + 3 * int(j) + np.arange(3)
+    def landmark_indices(j: int, number_landmarks: int | None = None) -> np.ndarray:
+        """State indices [12 + 3j, 13 + 3j, 14 + 3j] of landmark j (an integer ≥ 0, and < ``number_landmarks``
+        when that is given, e.g. ``state.landmark_indices(j, state.number_landmarks)``)."""
+        number_landmarks = integer(number_landmarks, "number_landmarks", minimum=0, allow_none=True)
+        j = integer(j, "j", minimum=0, below=number_landmarks)
+        return 12 + 3 * j + np.arange(3)
 
     @property
     def body_pose(self) -> np.ndarray:
@@ -80,12 +83,15 @@ class StateSLAM:
         return self._density.mean[12:].reshape(-1, 3).T
 
     def _landmark_selection(self, idx_landmarks, name="idx_landmarks") -> np.ndarray:
-        return index_list(idx_landmarks, self.number_landmarks, name, kind="landmark ")
+        idx = index_list(idx_landmarks, self.number_landmarks, name, kind="landmark ")
+        if np.unique(idx).size != idx.size:
+            raise ValueError(f"{name} must not repeat a landmark, got {idx.tolist()}")
+        return idx
 
     def _check_x(self, x):
         if x is None:
             return self._density.mean
-        x = np.asarray(x, dtype=float)
+        x = float_array(x, "x")
         if x.shape != (self.size,) or not np.all(np.isfinite(x)):
             raise ValueError(f"x must be a finite state vector of shape ({self.size},), got shape {x.shape}")
         return x
@@ -102,7 +108,12 @@ class StateSLAM:
         x = self._check_x(x)
         cols = 12 + 3 * idx[:, None] + np.arange(3)  # (k, 3)
         P = x[cols].T  # (3, k)
-        Q, jac = camera.body_to_pixel(P, x[6:12], return_jacobian=True)
+        try:
+            Q, jac = camera.body_to_pixel(P, x[6:12], return_jacobian=True)
+        except ProjectionError as exc:
+            where = "behind the camera" if exc.reason == "behind" else "beyond the lens fold"
+            raise ProjectionError(f"landmark(s) {idx[exc.columns].tolist()} lie {where} at this state: no predicted "
+                                  f"feature ({exc})", exc.columns, exc.reason) from None
         k = idx.size
         J = np.zeros((k, 2, self.size))
         J[:, :, _IDX_POSITION] = jac.wrt_position
@@ -176,7 +187,7 @@ def lab_demo_state(camera_pose=None) -> StateSLAM:
 
     ``camera_pose`` defaults to :data:`LAB_DEMO_CAMERA_POSE`.
     """
-    pose = LAB_DEMO_CAMERA_POSE if camera_pose is None else np.asarray(camera_pose, dtype=float)
+    pose = LAB_DEMO_CAMERA_POSE if camera_pose is None else float_array(camera_pose, "camera_pose")
     if pose.shape != (6,) or not np.all(np.isfinite(pose)):
         raise ValueError(f"camera_pose must be a finite vector of shape (6,), got shape {pose.shape}")
     mu = np.concatenate([np.zeros(6), pose[:3], rot2rpy(rpy2rot(pose[3:])), _DEMO_LANDMARKS.ravel()])

@@ -9,7 +9,7 @@ import numbers
 import numpy as np
 
 __all__ = ["integer", "positive_number", "finite_number", "int_array", "index_list", "finite_vector",
-           "feature_columns"]
+           "feature_columns", "float_array", "rng_seed", "boolean", "one_of", "function"]
 
 
 def integer(value, name: str, minimum: int | None = None, below: int | None = None, allow_none: bool = False):
@@ -98,3 +98,61 @@ def feature_columns(Y, name: str = "Y", allow_empty: bool = True) -> np.ndarray:
     if not np.all(np.isfinite(Y)):
         raise ValueError(f"{name} must be finite (no NaN/inf)")
     return Y
+
+
+def float_array(values, name: str) -> np.ndarray:
+    """``values`` (any shape) as a float ndarray, without copying a float array. Text, None, bools, complex
+    numbers and ragged or non-numeric sequences raise ValueError naming ``name`` (numpy would raise its own
+    conversion error, or silently turn None into NaN and "1.5" into 1.5)."""
+    if isinstance(values, np.ndarray) and values.dtype.kind in "iuf":
+        return np.asarray(values, dtype=float)
+    try:
+        raw = np.asarray(values)
+    except (TypeError, ValueError):
+        raw = None
+    if raw is None or raw.dtype.kind not in "iuf":
+        text = repr(values)
+        text = text if len(text) <= 60 else text[:57] + "..."
+        raise ValueError(f"{name} must be an array of real numbers, got {type(values).__name__} {text}")
+    return raw.astype(float, copy=False)
+
+
+def rng_seed(seed, name: str = "seed"):
+    """``seed`` unchanged when it is a reproducible seed for ``numpy.random.default_rng``: a non-negative
+    integer, a non-empty sequence of them, or a ``numpy.random.SeedSequence``. Anything else (negative,
+    float, bool, None, text) raises ValueError naming ``name``."""
+    if isinstance(seed, np.random.SeedSequence):
+        return seed
+    if isinstance(seed, numbers.Integral) and not isinstance(seed, bool):
+        if seed < 0:
+            raise ValueError(f"{name} must be a non-negative integer or a sequence of them, got {seed!r}")
+        return seed
+    arr = np.asarray(seed, dtype=object) if isinstance(seed, (list, tuple, np.ndarray)) else None
+    if arr is None or arr.ndim != 1 or arr.size == 0 or not all(
+            isinstance(v, numbers.Integral) and not isinstance(v, bool) and v >= 0 for v in arr):
+        raise ValueError(f"{name} must be a non-negative integer or a sequence of them, got {seed!r}")
+    return seed
+
+
+def boolean(value, name: str) -> bool:
+    """``value`` as a bool: True or False (a numpy bool too); 1, "yes", None and the like raise ValueError naming
+    ``name`` (a truthy string would otherwise silently switch an option on)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
+def one_of(value, name: str, options):
+    """``value`` unchanged when it is one of the strings ``options``; anything else raises ValueError naming
+    ``name`` and listing the options."""
+    if not isinstance(value, str) or value not in options:
+        raise ValueError(f"{name} must be one of {', '.join(repr(o) for o in options)}, got {value!r}")
+    return value
+
+
+def function(value, name: str, allow_none: bool = False):
+    """``value`` unchanged when it is callable (or None with ``allow_none``); anything else raises ValueError
+    naming ``name``."""
+    if (value is None and allow_none) or callable(value):
+        return value
+    raise ValueError(f"{name} must be callable{' or None' if allow_none else ''}, got {value!r}")

@@ -30,9 +30,10 @@ import numpy as np
 
 from .compatibility import individual_compatibility_matrix
 from ..gaussian import Gaussian, chi2inv, confidence_level
-from ..validation import integer
+from ..validation import float_array, integer
 
-__all__ = ["Association", "AssociationProblem", "prepare", "joint_sq_mahalanobis", "empty_association"]
+__all__ = ["Association", "AssociationProblem", "prepare", "joint_sq_mahalanobis", "empty_association",
+           "check_hypothesis"]
 
 
 @dataclass(frozen=True)
@@ -137,7 +138,7 @@ def prepare(density, Y, n_sigma: float = 3.0) -> AssociationProblem:
     """
     if not isinstance(density, Gaussian):
         raise ValueError(f"density must be a helpers.gaussian.Gaussian, got {type(density).__name__}")
-    Y = np.asarray(Y, dtype=float)
+    Y = float_array(Y, "Y")
     if Y.ndim != 2:
         raise ValueError(f"Y must be a 2-D array of shape (d, m) (one observation per column), got shape {Y.shape}")
     d, m = Y.shape
@@ -175,9 +176,32 @@ def prepare(density, Y, n_sigma: float = 3.0) -> AssociationProblem:
                               n_sigma=float(n_sigma), ic_threshold=float(chi2inv(c, d)))
 
 
+def check_hypothesis(idx, n: int, m: int, name: str = "idx") -> np.ndarray:
+    """``idx`` as an intp array of n entries, each −1 or an observation column in [0, m), no column used
+    twice; anything else raises ValueError naming ``name``."""
+    arr = np.asarray(idx)
+    if arr.ndim != 1 or arr.size != n:
+        raise ValueError(f"{name} must have one entry per landmark (length {n}), got shape {arr.shape}")
+    if arr.size and (arr.dtype == bool or not np.issubdtype(arr.dtype, np.integer)):
+        raise ValueError(f"{name} must contain integers (observation column or -1), got dtype {arr.dtype}")
+    if np.any(arr < -1) or np.any(arr >= m):
+        raise ValueError(f"{name} entries must be -1 or an observation column in [0, {m}): {arr.tolist()}")
+    used = arr[arr >= 0]
+    if np.unique(used).size != used.size:
+        raise ValueError(f"{name} gives one observation to several landmarks: {arr.tolist()}")
+    return arr.astype(np.intp)
+
+
 def joint_sq_mahalanobis(problem: AssociationProblem, idx) -> float:
-    """D²_H of the hypothesis ``idx`` (one entry per landmark, observation column or −1), from scratch."""
-    idx = np.asarray(idx)
+    """D²_H of the hypothesis ``idx`` (one entry per landmark, observation column or −1), from scratch.
+    ``idx`` is checked (:func:`check_hypothesis`); ``problem`` must come from :func:`prepare`."""
+    if not isinstance(problem, AssociationProblem):
+        raise ValueError(f"problem must be an AssociationProblem (from prepare), got {type(problem).__name__}")
+    return _joint_d2(problem, check_hypothesis(idx, problem.n, problem.m))
+
+
+def _joint_d2(problem, idx) -> float:
+    """:func:`joint_sq_mahalanobis` without the checks (the search loops call it per candidate)."""
     k = np.flatnonzero(idx >= 0)
     if k.size == 0:
         return 0.0
@@ -195,7 +219,7 @@ def finish(problem: AssociationProblem, idx, algorithm: str, stats=None, budget_
     idx = np.asarray(idx, dtype=np.intp).copy()
     idx.setflags(write=False)
     a = int(np.count_nonzero(idx >= 0))
-    d2 = joint_sq_mahalanobis(problem, idx) if d2 is None else float(d2)
+    d2 = _joint_d2(problem, idx) if d2 is None else float(d2)
     jc = True if a == 0 else bool(d2 <= problem.jc_threshold(a))
     return Association(idx=idx, d2=d2, n_pairings=a, jointly_compatible=jc, algorithm=algorithm,
                        n_sigma=problem.n_sigma, stats=dict(stats or {}), budget_exhausted=bool(budget_exhausted))
@@ -203,6 +227,10 @@ def finish(problem: AssociationProblem, idx, algorithm: str, stats=None, budget_
 
 def empty_association(problem: AssociationProblem, algorithm: str, stats=None) -> Association:
     """All landmarks unassociated (e.g. no observations)."""
+    if not isinstance(problem, AssociationProblem):
+        raise ValueError(f"problem must be an AssociationProblem (from prepare), got {type(problem).__name__}")
+    if not isinstance(algorithm, str):
+        raise ValueError(f"algorithm must be a name (str), got {type(algorithm).__name__}")
     return finish(problem, np.full(problem.n, -1), algorithm, stats=stats, d2=0.0)
 
 
@@ -234,9 +262,15 @@ def greedy_one_to_one(cost, allowed) -> np.ndarray:
     observation index), accepted when both ends are still free and ``allowed``. cost, allowed: (n, m).
     Returns idx (n,) with the observation of each landmark or −1.
     """
-    cost = np.asarray(cost, dtype=float)
+    cost = float_array(cost, "cost")
+    if cost.ndim != 2 or np.any(np.isnan(cost)):
+        raise ValueError(f"cost must be a 2-D (n, m) array without NaN, got shape {cost.shape}")
+    allowed = np.asarray(allowed)
+    if allowed.shape != cost.shape or allowed.dtype != bool:
+        raise ValueError(f"allowed must be a boolean array of the shape of cost {cost.shape}, got "
+                         f"{allowed.dtype} {allowed.shape}")
     n, m = cost.shape
     if n == 0 or m == 0:
         return np.full(n, -1, dtype=np.intp)
     order = np.argsort(cost.ravel(), kind="stable")
-    return _greedy_kernel(order.astype(np.int64), m, np.asarray(allowed, dtype=bool).ravel(), n).astype(np.intp)
+    return _greedy_kernel(order.astype(np.int64), m, allowed.ravel(), n).astype(np.intp)

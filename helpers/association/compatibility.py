@@ -23,7 +23,7 @@ import numpy as np
 
 from ..paths import data_dir
 from ..gaussian import Gaussian, chi2inv, confidence_level
-from ..validation import feature_columns, finite_number, integer
+from ..validation import feature_columns, finite_number, float_array, integer
 
 __all__ = [
     "check_bundle_density",
@@ -50,7 +50,7 @@ def check_bundle_density(density, allow_empty: bool = True) -> int:
 def individual_compatibility(i, j, Y, density: Gaussian, n_sigma: float = 3.0) -> bool:
     """Whether feature i (column of Y) is individually compatible with selected landmark j (eq 12)."""
     n = check_bundle_density(density)
-    Y = feature_columns(Y, allow_empty=False)
+    Y = feature_columns(float_array(Y, "Y"), allow_empty=False)
     i = integer(i, "i", minimum=0, below=Y.shape[1])
     j = integer(j, "j", minimum=0, below=n)
     return density.marginal([2 * j, 2 * j + 1]).is_within_confidence_region(Y[:, i], n_sigma)
@@ -72,7 +72,7 @@ def individual_compatibility_matrix(Y, density: Gaussian, n_sigma: float = 3.0):
     Returns ``(d2, compatible)``, both (m, n): d2[i, j] = w_ijᵀ w_ij, compatible = d2 ≤ χ²_2(c).
     Vectorised: one batched QR for the n marginals, closed-form 2 × 2 triangular solves for all m·n pairs.
     """
-    Y = feature_columns(Y, allow_empty=False)
+    Y = feature_columns(float_array(Y, "Y"), allow_empty=False)
     mu, S = landmark_marginals(density)
     a, b, c = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
     if np.any(a == 0) or np.any(c == 0):
@@ -88,8 +88,11 @@ def individual_compatibility_matrix(Y, density: Gaussian, n_sigma: float = 3.0):
 
 def uniform_surprisal(image_size) -> float:
     """s_U = −log U(y) = log W + log H for an image of (width, height) pixels (14.8325 for 1920 × 1440)."""
-    size = np.asarray(image_size)
-    if size.shape != (2,) or not np.all(np.isfinite(size.astype(float))) or np.any(size <= 0):
+    try:
+        size = float_array(image_size, "image_size")
+    except ValueError:
+        size = np.zeros(0)          # reported below with the expected form
+    if size.shape != (2,) or not np.all(np.isfinite(size)) or np.any(size <= 0):
         raise ValueError(f"image_size must be two positive numbers (width, height), got {image_size!r}")
     return float(np.log(float(size[0])) + np.log(float(size[1])))
 
@@ -97,12 +100,13 @@ def uniform_surprisal(image_size) -> float:
 def joint_compatibility(idx, sU, Y, density: Gaussian, n_sigma: float = 3.0):
     """Joint compatibility and total surprisal of the association ``idx`` (Lab 8 eqs 14–17).
 
-    ``idx`` has one entry per selected landmark: a feature column of Y, or −1 (unassociated).
+    ``idx`` has one entry per selected landmark: a feature column of Y, or −1 (unassociated); a feature
+    is never associated with two landmarks. An empty scan (Y of shape (2, 0)) allows only idx = all −1.
     Returns ``(compatible, surprisal)`` with surprisal = n_U·sU − log N(y_A; μ_A, P_A); if nothing is
     associated, ``(True, n·sU)``.
     """
     n = check_bundle_density(density)
-    Y = feature_columns(Y, allow_empty=False)
+    Y = feature_columns(float_array(Y, "Y"))
     idx_arr = np.asarray(idx)
     if idx_arr.ndim != 1 or idx_arr.size != n:
         raise ValueError(f"idx must have one entry per landmark (length {n}), got shape {idx_arr.shape}")
@@ -110,6 +114,9 @@ def joint_compatibility(idx, sU, Y, density: Gaussian, n_sigma: float = 3.0):
         raise ValueError(f"idx must contain integers (feature index or -1), got dtype {idx_arr.dtype}")
     if np.any(idx_arr < -1) or np.any(idx_arr >= Y.shape[1]):
         raise ValueError(f"idx entries must be -1 or a feature index in [0, {Y.shape[1]}): {idx_arr.tolist()}")
+    used = idx_arr[idx_arr >= 0]
+    if np.unique(used).size != used.size:
+        raise ValueError(f"idx gives one feature to several landmarks (only -1 may repeat): {idx_arr.tolist()}")
     sU = finite_number(sU, "sU")
     associated = np.flatnonzero(idx_arr >= 0)
     nA = associated.size

@@ -29,11 +29,13 @@ from typing import Callable, Mapping
 import numpy as np
 from scipy.stats import norm
 
+from .common import Association
 from .scenarios import range_bearing_scenario
 from ..timing import best_of
+from ..validation import float_array
 
 __all__ = ["score", "score_many", "run_trials", "TrialResults", "RATES", "wilson_interval", "sweep",
-           "sweep_table"]
+           "sweep_table", "check_results"]
 
 #: numerator and denominator counts of each rate
 RATES = {"precision": ("tp", "n_pred"), "recall": ("tp", "n_true"), "accuracy": ("correct", "m")}
@@ -43,8 +45,12 @@ def score_many(idx_list, truth_list, m_list) -> dict:
     """Counts for many trials at once: dict of int arrays (one entry per trial) ``tp``, ``n_pred``,
     ``n_true``, ``correct`` (observations labelled right) and ``m``.
 
-    idx_list, truth_list: sequences of int arrays (n_t,) with observation columns or −1; m_list: m_t.
+    idx_list, truth_list: sequences of int arrays (n_t,) with observation columns or −1, no column used twice
+    in one array; m_list: m_t (non-negative integers).
     """
+    for name, seq in (("idx_list", idx_list), ("truth_list", truth_list), ("m_list", m_list)):
+        if isinstance(seq, (str, bytes)) or not hasattr(seq, "__len__"):
+            raise ValueError(f"{name} must be a sequence with one entry per trial, got {type(seq).__name__}")
     if not (len(idx_list) == len(truth_list) == len(m_list)):
         raise ValueError("idx_list, truth_list and m_list must have the same length "
                          f"(got {len(idx_list)}, {len(truth_list)}, {len(m_list)})")
@@ -59,9 +65,18 @@ def score_many(idx_list, truth_list, m_list) -> dict:
         if a.ndim != 1 or a.shape != b.shape:
             raise ValueError(f"trial {t}: idx and truth must be 1-D arrays of the same length, "
                              f"got shapes {a.shape} and {b.shape}")
+        for name, arr in (("idx", a), ("truth", b)):
+            if arr.size and (arr.dtype == bool or not np.issubdtype(arr.dtype, np.integer)):
+                raise ValueError(f"trial {t}: {name} must contain integers (observation column or -1), "
+                                 f"got dtype {arr.dtype}")
+            if np.unique(arr[arr >= 0]).size != np.count_nonzero(arr >= 0):
+                raise ValueError(f"trial {t}: {name} gives one observation to several landmarks: {arr.tolist()}")
         idx_arrs.append(a.astype(np.int64))
         truth_arrs.append(b.astype(np.int64))
-    m = np.asarray(m_list, dtype=np.int64)
+    m_arr = np.asarray(m_list)
+    if m_arr.ndim != 1 or m_arr.dtype == bool or not np.issubdtype(m_arr.dtype, np.integer) or np.any(m_arr < 0):
+        raise ValueError(f"m_list must hold one non-negative integer per trial, got {m_list!r}")
+    m = m_arr.astype(np.int64)
     n = np.array([a.size for a in idx_arrs], dtype=np.int64)
     idx = np.concatenate(idx_arrs)
     truth = np.concatenate(truth_arrs)
@@ -140,8 +155,8 @@ def wilson_interval(successes, trials, confidence: float = 0.95):
     Unlike p̂ ± z√(p̂(1−p̂)/n) it stays inside [0, 1] and does not collapse to zero width at p̂ = 0 or 1.
     n = 0 gives the uninformative interval (0, 1).
     """
-    k = np.asarray(successes, dtype=float)
-    n = np.asarray(trials, dtype=float)
+    k = float_array(successes, "successes")
+    n = float_array(trials, "trials")
     if np.any(~np.isfinite(k)) or np.any(k < 0) or np.any(k != np.round(k)):
         raise ValueError(f"successes must be non-negative integers, got {successes!r}")
     if np.any(~np.isfinite(n)) or np.any(n < 0) or np.any(n != np.round(n)):
@@ -187,12 +202,16 @@ def run_trials(algorithms: Mapping[str, Callable], n_trials: int, seed: int,
     idx = {name: [] for name in names}
     extra = {name: {"time": [], "nodes": [], "exhausted": [], "n_pairings": []} for name in names}
     truths, ms = [], []
+    if not callable(scenario):
+        raise ValueError(f"scenario must be callable (seed=…, **scenario_kwargs) → scenario, got {scenario!r}")
     for t in range(int(n_trials)):
         sc = scenario(seed=(int(seed), t), **scenario_kwargs)
+        if not all(hasattr(sc, attr) for attr in ("density", "Y", "truth")):
+            raise ValueError(f"scenario must return an object with density, Y and truth, got {type(sc).__name__}")
         truths.append(sc.truth)
         ms.append(sc.Y.shape[1])
         for name in names:
-            a, best = best_of(int(repeat), algorithms[name], sc.density, sc.Y)
+            a, best = _call_algorithm(algorithms[name], name, t, int(repeat), sc)
             extra[name]["time"].append(best)
             idx[name].append(a.idx)
             extra[name]["nodes"].append(int(a.stats.get("nodes", 0)))
@@ -209,6 +228,20 @@ def run_trials(algorithms: Mapping[str, Callable], n_trials: int, seed: int,
     return res
 
 
+def _call_algorithm(f, name, t, repeat, sc):
+    """(association, fastest time) of ``repeat`` calls f(sc.density, sc.Y); an exception raised by the
+    algorithm propagates unchanged with a note naming it and the trial, a result that is not an Association
+    raises ValueError."""
+    try:
+        a, best = best_of(repeat, f, sc.density, sc.Y)
+    except Exception as exc:
+        exc.add_note(f"raised by algorithms[{name!r}] on trial {t} of run_trials")
+        raise
+    if not isinstance(a, Association):
+        raise ValueError(f"algorithms[{name!r}] must return an Association, got {type(a).__name__}")
+    return a, best
+
+
 def sweep(algorithms: Mapping[str, Callable], n_trials: int, seed: int, base: Mapping, values,
           make_kwargs: Callable, cache: dict | None = None) -> dict:
     """Run every algorithm for each value of one factor: {value: TrialResults}.
@@ -221,13 +254,21 @@ def sweep(algorithms: Mapping[str, Callable], n_trials: int, seed: int, base: Ma
         raise ValueError(f"make_kwargs must be callable (value → scenario kwargs), got {type(make_kwargs).__name__}")
     if cache is not None and not isinstance(cache, dict):
         raise ValueError(f"cache must be a dict or None, got {type(cache).__name__}")
+    if not isinstance(base, Mapping):
+        raise ValueError(f"base must be a mapping of scenario keyword arguments, got {type(base).__name__}")
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__iter__"):
+        raise ValueError(f"values must be an iterable of factor values, got {type(values).__name__}")
     values = list(values)
     if not values:
         raise ValueError("values must name at least one setting of the factor")
     cache = {} if cache is None else cache
     out = {}
     for v in values:
-        kwargs = {**base, **make_kwargs(v)}
+        extra = make_kwargs(v)
+        if not isinstance(extra, Mapping):
+            raise ValueError(f"make_kwargs({v!r}) must return a mapping of scenario keyword arguments, got "
+                             f"{type(extra).__name__}")
+        kwargs = {**base, **extra}
         key = (tuple(algorithms), int(n_trials), int(seed), repr(sorted(kwargs.items())))
         if key not in cache:
             cache[key] = run_trials(algorithms, n_trials, seed=seed, **kwargs)
@@ -235,15 +276,31 @@ def sweep(algorithms: Mapping[str, Callable], n_trials: int, seed: int, base: Ma
     return out
 
 
+def check_results(results, names=None) -> list:
+    """The algorithm names of ``results`` ({factor value: TrialResults}, at least one, all with the same
+    algorithms); with ``names`` also checks that each is one of them. ValueError names the argument."""
+    if not isinstance(results, Mapping) or not results:
+        raise ValueError("results must be a non-empty mapping {factor value: TrialResults}")
+    if not all(isinstance(r, TrialResults) for r in results.values()):
+        raise ValueError("results must map each factor value to a TrialResults (from run_trials or sweep)")
+    known = list(next(iter(results.values())).names)
+    if any(list(r.names) != known for r in results.values()):
+        raise ValueError("results must hold the same algorithms for every factor value")
+    unknown = [] if names is None else [n for n in names if n not in known]
+    if unknown:
+        raise ValueError(f"names must be among the algorithms of results {known}, got {unknown}")
+    return known
+
+
 def sweep_table(title: str, results: Mapping, unit: str = "", keys=("precision", "recall", "accuracy")) -> str:
     """A fixed-width table of ``results`` ({value: TrialResults}): one row per value, for every algorithm
     the rates ``keys`` (ratios of integer counts, printed with 3 decimals)."""
-    if not results:
-        raise ValueError("results must hold at least one setting")
+    names = check_results(results)
+    if not isinstance(title, str) or not isinstance(unit, str):
+        raise ValueError(f"title and unit must be strings, got {type(title).__name__} and {type(unit).__name__}")
     bad = [k for k in keys if k not in RATES]
     if bad:
         raise ValueError(f"keys must be among {list(RATES)}, got {bad}")
-    names = next(iter(results.values())).names
     width = 6 * len(keys) - 1
     head = {"precision": "prec", "recall": "rec", "accuracy": "acc"}
     lines = [title,

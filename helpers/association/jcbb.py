@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..gaussian import chi2inv, confidence_level
-from .common import Association, _check_int, empty_association, finish, joint_sq_mahalanobis, prepare
+from .common import Association, _check_int, _joint_d2, empty_association, finish, prepare
 from .jcbb_kernel import TRACE_BEST, TRACE_BOUND, TRACE_EXPANDED, TRACE_JC_FAIL, jcbb_search
 
 __all__ = ["jcbb", "jcbb_reference", "JCBBTrace", "TRACE_EXPANDED", "TRACE_JC_FAIL", "TRACE_BOUND",
@@ -70,6 +70,9 @@ class JCBBTrace:
 def level_order(compatible) -> np.ndarray:
     """Landmarks that open a tree level, in visiting order: at least one IC candidate; fewest candidates
     first, ties → lower landmark index. ``compatible``: boolean (n, m) IC matrix."""
+    compatible = np.asarray(compatible)
+    if compatible.ndim != 2 or compatible.dtype != bool:
+        raise ValueError(f"compatible must be a boolean (n, m) matrix, got {compatible.dtype} {compatible.shape}")
     counts = np.count_nonzero(compatible, axis=1)
     lm = np.flatnonzero(counts > 0)
     return lm[np.lexsort((lm, counts[lm]))]
@@ -103,7 +106,7 @@ class _ReferenceSearch:
     def joint_d2(self, k, i):
         """D² of H + (k, i), from the definition f_Hᵀ C_H⁻¹ f_H (a Cholesky factorisation of C_H)."""
         self.idx[k] = i
-        d2 = joint_sq_mahalanobis(self.problem, self.idx)
+        d2 = _joint_d2(self.problem, self.idx)
         self.idx[k] = -1
         self.jc_evaluations += 1
         return d2

@@ -16,9 +16,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import inspect
+
 from .compatibility import uniform_surprisal
 from .snn import snn
+from ..camera import Camera
 from ..features import Features, detect_features
+from ..state_slam import StateSLAM
+from ..validation import finite_number, float_array
 
 __all__ = [
     "DEMO_DETECTOR",
@@ -123,8 +128,7 @@ def association_demo(image, camera, state, image_name: str = "rendered scene", f
     lab's program printed it; a coarser one (e.g. ".1f") keeps the printed line identical across machines
     whose last-bit floating-point differences move the surprisal slightly.
     """
-    if not isinstance(image_name, str):
-        raise ValueError(f"image_name must be a string, got {type(image_name).__name__}")
+    _check_demo_arguments(camera, state, image_name, detector, surprisal_format)
     if features is None:
         features = detect_features(image, **(DEMO_DETECTOR if detector is None else detector))
     elif not isinstance(features, Features):
@@ -147,6 +151,25 @@ def association_demo(image, camera, state, image_name: str = "rendered scene", f
     return result
 
 
+def _check_demo_arguments(camera, state, image_name, detector, surprisal_format):
+    """ValueError naming the first bad argument of :func:`association_demo`."""
+    if not isinstance(camera, Camera):
+        raise ValueError(f"camera must be a helpers.camera.Camera, got {type(camera).__name__}")
+    if not isinstance(state, StateSLAM):
+        raise ValueError(f"state must be a helpers.state_slam.StateSLAM, got {type(state).__name__}")
+    if not isinstance(image_name, str):
+        raise ValueError(f"image_name must be a string, got {type(image_name).__name__}")
+    if detector is not None:
+        known = set(inspect.signature(detect_features).parameters) - {"image"}
+        if not isinstance(detector, dict) or not set(detector) <= known:
+            raise ValueError(f"detector must be a dict of detect_features options {sorted(known)}, got {detector!r}")
+    try:
+        format(0.0, surprisal_format)
+    except (TypeError, ValueError):
+        raise ValueError(f"surprisal_format must be a float format spec such as '.6g', got {surprisal_format!r}") \
+            from None
+
+
 def ground_truth_check(result: AssociationResult, camera, true_pose, true_landmarks, tol: float = 2.0):
     """Compare the association with the truth the renderer knows.
 
@@ -160,10 +183,16 @@ def ground_truth_check(result: AssociationResult, camera, true_pose, true_landma
 
     Returns a list of dicts (one per selected landmark, selection order).
     """
-    true_landmarks = np.asarray(true_landmarks, dtype=float)
-    if true_landmarks.ndim != 2 or true_landmarks.shape[0] != 3:
-        raise ValueError(f"true_landmarks must have shape (3, n_L), got {true_landmarks.shape}")
-    if not (np.isfinite(tol) and tol > 0):
+    if not isinstance(result, AssociationResult):
+        raise ValueError(f"result must be an AssociationResult (association_demo), got {type(result).__name__}")
+    if not isinstance(camera, Camera):
+        raise ValueError(f"camera must be a helpers.camera.Camera, got {type(camera).__name__}")
+    true_landmarks = float_array(true_landmarks, "true_landmarks")
+    n_l = result.in_fov.size
+    if true_landmarks.shape != (3, n_l) or not np.all(np.isfinite(true_landmarks)):
+        raise ValueError(f"true_landmarks must be a finite (3, {n_l}) array (one column per landmark of the state), "
+                         f"got shape {true_landmarks.shape}")
+    if not finite_number(tol, "tol") > 0:
         raise ValueError(f"tol must be a positive number of pixels, got {tol!r}")
     Y = result.features.Y
     rows = []
@@ -189,16 +218,20 @@ def _shown_image(image, image_scale, window):
     import cv2
 
     image = np.asarray(image)
-    if image.dtype != np.uint8 or image.ndim not in (2, 3):
+    if image.dtype != np.uint8 or image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] != 3) \
+            or image.size == 0:
         raise ValueError(f"image must be a uint8 gray or BGR image, got dtype {image.dtype}, shape {image.shape}")
-    if not (np.isfinite(image_scale) and 0 < image_scale <= 1):
+    if not 0 < finite_number(image_scale, "image_scale") <= 1:
         raise ValueError(f"image_scale must lie in (0, 1], got {image_scale!r}")
     H, W = image.shape[:2]
     if window is None:
         shown = image if image_scale == 1 else cv2.resize(image, None, fx=image_scale, fy=image_scale,
                                                           interpolation=cv2.INTER_AREA)
         return shown, (-0.5, W - 0.5, H - 0.5, -0.5), (-0.5, W - 0.5, -0.5, H - 0.5)
-    x0, x1, y0, y1 = (float(v) for v in window)
+    win = float_array(window, "window")
+    if win.shape != (4,) or not np.all(np.isfinite(win)):
+        raise ValueError(f"window must be four finite numbers (x0, x1, y0, y1), got {window!r}")
+    x0, x1, y0, y1 = (float(v) for v in win)
     if not (x0 < x1 and y0 < y1):
         raise ValueError(f"window must be (x0, x1, y0, y1) with x0 < x1 and y0 < y1, got {window!r}")
     c0, c1 = max(int(np.floor(x0 + 0.5)), 0), min(int(np.ceil(x1 + 0.5)), W)
@@ -286,6 +319,8 @@ def plot_association(image, result: AssociationResult, ax=None, n_sigma: float =
     """
     import matplotlib.pyplot as plt
 
+    if not isinstance(result, AssociationResult):
+        raise ValueError(f"result must be an AssociationResult (association_demo), got {type(result).__name__}")
     shown, extent, (x0, x1, y0, y1) = _shown_image(image, image_scale, window)
     H, W = np.asarray(image).shape[:2]
     if ax is None:

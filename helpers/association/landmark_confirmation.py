@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .nearest_neighbour import mahalanobis_nn
-from ..gaussian import Gaussian
-from ..validation import integer, positive_number
+from ..gaussian import Gaussian, confidence_level
+from ..validation import integer, positive_number, rng_seed
 
 __all__ = ["ConfirmationSequence", "Track", "confirmation_sequence", "confirm_landmarks"]
 
@@ -75,7 +75,7 @@ def confirmation_sequence(seed, n_frames: int = 10, n_landmarks: int = 14, n_kno
                           meas_sigma: float = 0.1, p_detect: float = 1.0) -> ConfirmationSequence:
     """Draw the sequence (see the module docstring). Landmarks are uniform in the strip swept by the
     sensor (x in [−2, (n_frames − 1)·step + 2] m, |y| ≤ 4 m); the first ``n_known`` are in the map."""
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(rng_seed(seed))
     n_frames = integer(n_frames, "n_frames", 1)
     n_landmarks = integer(n_landmarks, "n_landmarks", 1)
     n_known = integer(n_known, "n_known", 0)
@@ -124,8 +124,11 @@ def confirm_landmarks(seq: ConfirmationSequence, n_confirm: int = 3, n_miss: int
     of the final map the landmark it came from (known landmarks first, then confirmed tracks; a confirmed
     clutter track has source −1). ``n_confirm = 1`` adds every unexplained observation at once.
     """
+    if not isinstance(seq, ConfirmationSequence):
+        raise ValueError(f"seq must be a ConfirmationSequence (confirmation_sequence), got {type(seq).__name__}")
     n_confirm = integer(n_confirm, "n_confirm", 1)
     n_miss = integer(n_miss, "n_miss", 1)
+    confidence_level(n_sigma)                               # validates n_sigma before any frame is processed
     R = seq.meas_sigma ** 2 * np.eye(2)
     map_mean = [p for p in seq.landmarks[seq.known]]
     map_cov = [R.copy() for _ in map_mean]                  # map landmarks: known to about σ

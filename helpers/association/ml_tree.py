@@ -29,6 +29,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from .common import Association, finish, prepare
+from ..validation import finite_number, float_array, integer
 
 __all__ = ["MLTreeResult", "ml_costs", "ml_tree_search", "greedy_descent", "independent_ml", "exhaustive_ml",
            "assignment_ml", "tree_size", "hypothesis_cost"]
@@ -73,7 +74,22 @@ def tree_size(n_landmarks: int, n_observations: int) -> tuple[int, int]:
 
 
 def hypothesis_cost(ell, new, labels) -> float:
-    """J(c) of observation labels (landmark or −1) under the costs of :func:`ml_costs`."""
+    """J(c) of observation labels (landmark or −1) under the costs of :func:`ml_costs` (ell (K, N), new);
+    labels has K entries, each −1 or a landmark in [0, N) (ValueError naming the argument otherwise)."""
+    ell = float_array(ell, "ell")
+    if ell.ndim != 2 or not np.all(np.isfinite(ell)):
+        raise ValueError(f"ell must be a finite (K, N) cost array, got shape {ell.shape}")
+    new = finite_number(new, "new")
+    arr = np.asarray(labels)
+    if arr.shape != (ell.shape[0],) or (arr.size and (arr.dtype == bool or not np.issubdtype(arr.dtype, np.integer))):
+        raise ValueError(f"labels must hold {ell.shape[0]} integers (one per observation), got {arr.dtype} {arr.shape}")
+    if np.any(arr < -1) or np.any(arr >= ell.shape[1]):
+        raise ValueError(f"labels entries must be -1 or a landmark in [0, {ell.shape[1]}): {arr.tolist()}")
+    return _cost(ell, new, arr.astype(np.intp))
+
+
+def _cost(ell, new, labels) -> float:
+    """:func:`hypothesis_cost` without the checks (called for every leaf of the exhaustive search)."""
     labels = np.asarray(labels)
     paired = labels >= 0
     return float(ell[np.flatnonzero(paired), labels[paired]].sum() + new * np.count_nonzero(~paired))
@@ -85,7 +101,7 @@ def _result(problem, ell, new, labels, expanded, generated, exhausted, name):
     idx[labels[labels >= 0]] = np.flatnonzero(labels >= 0)
     assoc = finish(problem, idx, name, {"nodes": int(expanded), "generated": int(generated)},
                    budget_exhausted=exhausted)
-    return MLTreeResult(labels=labels, cost=hypothesis_cost(ell, new, labels), expanded=int(expanded),
+    return MLTreeResult(labels=labels, cost=_cost(ell, new, labels), expanded=int(expanded),
                         generated=int(generated), budget_exhausted=bool(exhausted), association=assoc)
 
 
@@ -165,6 +181,7 @@ def independent_ml(density, Y, alpha) -> np.ndarray:
 def exhaustive_ml(density, Y, alpha, max_leaves: int = 200_000) -> tuple[np.ndarray, float]:
     """(labels, cost) of the one-to-one optimum by enumerating every leaf (small problems only:
     ValueError when (N + 1)^K exceeds ``max_leaves``). For tests and checks."""
+    max_leaves = integer(max_leaves, "max_leaves", minimum=1)
     problem, ell, new = ml_costs(density, Y, alpha)
     K, N = ell.shape
     if tree_size(N, K)[0] > max_leaves:
@@ -174,7 +191,7 @@ def exhaustive_ml(density, Y, alpha, max_leaves: int = 200_000) -> tuple[np.ndar
         paired = [k for k in labels if k >= 0]
         if len(paired) != len(set(paired)):
             continue
-        c = hypothesis_cost(ell, new, labels)
+        c = _cost(ell, new, labels)
         if c < best_cost:
             best, best_cost = labels, c
     return np.asarray(best, dtype=np.intp), float(best_cost)
@@ -194,4 +211,4 @@ def assignment_ml(density, Y, alpha) -> tuple[np.ndarray, float]:
     C[np.arange(K), N + np.arange(K)] = new
     rows, cols = linear_sum_assignment(C)
     labels = np.where(cols < N, cols, -1).astype(np.intp)[np.argsort(rows)]
-    return labels, hypothesis_cost(ell, new, labels)
+    return labels, _cost(ell, new, labels)

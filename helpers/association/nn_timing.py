@@ -18,24 +18,34 @@ import numbers
 import numpy as np
 
 from ..timing import best_of
+from ..validation import float_array, rng_seed
 
 __all__ = ["inverse_2x2", "pair_distances", "nn_distance_table", "per_observation_nn", "random_nn_problem",
            "time_nn", "loglog_slope"]
 
 
 def _check(mu, S, Y):
-    mu, S, Y = (np.asarray(a, dtype=float) for a in (mu, S, Y))
+    mu, S, Y = (float_array(a, name) for a, name in ((mu, "mu"), (S, "S"), (Y, "Y")))
     if mu.ndim != 2 or mu.shape[1] != 2:
         raise ValueError(f"mu must have shape (N, 2), got {mu.shape}")
     if S.shape != (mu.shape[0], 2, 2):
         raise ValueError(f"S must have shape (N, 2, 2) = {(mu.shape[0], 2, 2)}, got {S.shape}")
     if Y.ndim != 2 or Y.shape[0] != 2:
         raise ValueError(f"Y must have shape (2, K), got {Y.shape}")
+    for name, a in (("mu", mu), ("S", S), ("Y", Y)):
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{name} must be finite (no NaN/inf)")
     return mu, S, Y
 
 
 def inverse_2x2(S):
-    """(a, b, c) with S_j⁻¹ = [[a_j, b_j], [b_j, c_j]] for every 2×2 innovation covariance (closed form)."""
+    """(a, b, c) with S_j⁻¹ = [[a_j, b_j], [b_j, c_j]] for every 2×2 innovation covariance (closed form).
+    S must be (N, 2, 2), finite, symmetric and positive definite (ValueError naming ``S``)."""
+    S = float_array(S, "S")
+    if S.ndim != 3 or S.shape[1:] != (2, 2) or not np.all(np.isfinite(S)):
+        raise ValueError(f"S must be a finite (N, 2, 2) array of covariances, got shape {S.shape}")
+    if not np.allclose(S[:, 0, 1], S[:, 1, 0], rtol=1e-10, atol=0.0):
+        raise ValueError("S: every innovation covariance must be symmetric")
     det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] * S[:, 1, 0]
     if np.any(det <= 0) or np.any(S[:, 0, 0] <= 0):
         raise ValueError("S: every innovation covariance must be positive definite")
@@ -106,7 +116,12 @@ def time_nn(Ks, Ns, seed: int = 0, repeats: int = 5):
     """
     if isinstance(repeats, bool) or not isinstance(repeats, numbers.Integral) or repeats < 1:
         raise ValueError(f"repeats must be a positive integer, got {repeats!r}")
-    rng = np.random.default_rng(seed)
+    for name, grid in (("Ks", Ks), ("Ns", Ns)):
+        arr = np.asarray(grid)
+        if arr.ndim != 1 or arr.size == 0 or arr.dtype == bool or not np.issubdtype(arr.dtype, np.integer) \
+                or np.any(arr < 1):
+            raise ValueError(f"{name} must be a non-empty list of positive integers, got {grid!r}")
+    rng = np.random.default_rng(rng_seed(seed))
     out_k, out_n, out_t = [], [], []
     for n in Ns:
         for k in Ks:
@@ -120,7 +135,8 @@ def time_nn(Ks, Ns, seed: int = 0, repeats: int = 5):
 
 def loglog_slope(x, y) -> float:
     """Least-squares slope p of log y = p log x + b (x, y positive, at least two distinct x)."""
-    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-    if x.shape != y.shape or x.ndim != 1 or np.any(x <= 0) or np.any(y <= 0) or np.unique(x).size < 2:
+    x, y = float_array(x, "x"), float_array(y, "y")
+    if x.shape != y.shape or x.ndim != 1 or not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))) \
+            or np.any(x <= 0) or np.any(y <= 0) or np.unique(x).size < 2:
         raise ValueError("x and y must be 1-D positive arrays of equal length with at least two distinct x")
     return float(np.polyfit(np.log(x), np.log(y), 1)[0])

@@ -5,8 +5,12 @@ from __future__ import annotations
 import matplotlib.ticker as mticker
 import numpy as np
 
+from .common import check_hypothesis
+from .compatibility import check_bundle_density
+from .evaluation import RATES, check_results
 from .jcbb import TRACE_BEST, TRACE_BOUND, TRACE_EXPANDED, TRACE_JC_FAIL, JCBBTrace
 from ..figures import COLORS
+from ..validation import feature_columns, float_array, index_list
 
 __all__ = ["draw_gates", "draw_association", "draw_interpretation_tree", "tree_layout", "ALGORITHM_STYLE",
            "algorithm_style", "plot_rate_sweep", "log_count_axis", "draw_node_counts", "draw_times"]
@@ -23,7 +27,10 @@ ALGORITHM_STYLE = {
 
 def draw_gates(ax, density, n_sigma: float = 3.0, landmarks=None, color=None, label_landmarks=True):
     """Each landmark's predicted mean ('+') and its n_σ gate (the marginal confidence ellipse)."""
-    n = density.size // 2
+    n = check_bundle_density(density, allow_empty=False)
+    if landmarks is not None:
+        empty = np.size(landmarks) == 0
+        landmarks = [] if empty else index_list(landmarks, n, "landmarks", kind="landmark ")
     color = COLORS["estimate"] if color is None else color
     mu = density.mean.reshape(n, 2)
     for k in range(n) if landmarks is None else landmarks:
@@ -39,11 +46,13 @@ def draw_association(ax, density, Y, idx, truth=None, title=None, n_sigma: float
     """Gates, observations (black dots) and the pairings of ``idx`` (one entry per landmark): a line from
     the predicted mean to the paired observation, green when it matches ``truth``, red when not
     (blue when no truth is given)."""
+    n = check_bundle_density(density, allow_empty=False)
+    Y = feature_columns(float_array(Y, "Y"))
+    idx = check_hypothesis(idx, n, Y.shape[1], "idx")
+    truth = None if truth is None else check_hypothesis(truth, n, Y.shape[1], "truth")
     draw_gates(ax, density, n_sigma, landmarks=landmarks, label_landmarks=label_landmarks)
-    Y = np.asarray(Y)
     mu = density.mean.reshape(-1, 2)
     ax.plot(Y[0], Y[1], "o", color=COLORS["truth"], ms=4, label="observations")
-    idx = np.asarray(idx)
     for k in np.flatnonzero(idx >= 0):
         ok = None if truth is None else bool(truth[k] == idx[k])
         col = COLORS["estimate"] if ok is None else (COLORS["alt"] if ok else COLORS["bound"])
@@ -59,6 +68,8 @@ def draw_association(ax, density, Y, idx, truth=None, title=None, n_sigma: float
 def tree_layout(trace: JCBBTrace):
     """(x, y) of every trace node: leaves of the recorded tree at consecutive x in visiting order,
     parents centred over their children, y = −depth."""
+    if not isinstance(trace, JCBBTrace):
+        raise ValueError(f"trace must be a JCBBTrace (jcbb(..., trace=True).stats['trace']), got {type(trace).__name__}")
     n = trace.parent.size
     children = [[] for _ in range(n)]
     for i in range(1, n):
@@ -131,11 +142,11 @@ def plot_rate_sweep(ax, results, key: str, confidence: float = 0.95, names=None,
     """One line per algorithm: the rate ``key`` (precision / recall / accuracy) of ``results``
     ({factor value: TrialResults}) against the factor value, with Wilson ``confidence`` intervals as error
     bars. ``jitter`` shifts the algorithms' x positions apart (in data units) so the bars do not overlap."""
-    if not results:
-        raise ValueError("results must hold at least one setting")
-    first = next(iter(results.values()))
-    names = list(first.names if names is None else names)
-    xs = np.asarray(list(results), dtype=float)
+    known = check_results(results, names)
+    if key not in RATES:
+        raise ValueError(f"key must be one of {list(RATES)}, got {key!r}")
+    names = list(known if names is None else names)
+    xs = float_array(list(results), "results (its keys, the factor values)")
     for j, name in enumerate(names):
         rate = np.array([results[v].summary()[name][key] for v in results])
         ci = np.array([results[v].interval(name, key, confidence) for v in results])
@@ -166,6 +177,7 @@ def log_count_axis(ax, axis: str = "y"):
 def draw_node_counts(ax, cost, max_nodes=None, name: str = "JCBB"):
     """Median and maximum expanded nodes of algorithm ``name`` against m (``cost``: {m: TrialResults}),
     with the node budget ``max_nodes`` as a labelled horizontal line and the number of searches it cut."""
+    check_results(cost, [name])
     ms = list(cost)
     nodes = [cost[m].counts[name]["nodes"] for m in ms]
     col = algorithm_style(name)["color"]
@@ -186,6 +198,9 @@ def draw_node_counts(ax, cost, max_nodes=None, name: str = "JCBB"):
 def draw_times(ax, cost, names):
     """Median (solid) and maximum (dashed) time per call of each algorithm in ``names`` against m, in ms
     (``cost``: {m: TrialResults})."""
+    if isinstance(names, str):
+        raise ValueError(f"names must be a list of algorithm names, got the string {names!r}")
+    check_results(cost, list(names))
     ms = list(cost)
     for name in names:
         st = algorithm_style(name)

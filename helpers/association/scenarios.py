@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..gaussian import Gaussian
-from ..validation import positive_number
+from ..validation import float_array, positive_number, rng_seed
 
 __all__ = ["Scenario", "observe_points", "range_bearing_scenario", "lab_camera_scenario",
            "DEFAULT_POSE_CORRELATION"]
@@ -100,7 +100,7 @@ def _generator(seed, rng):
     if rng is None:
         if seed is None:
             raise ValueError("give seed or rng: every scenario must be reproducible")
-        return np.random.default_rng(seed)
+        return np.random.default_rng(rng_seed(seed))
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
     return rng
@@ -116,8 +116,8 @@ def observe_points(pose, landmarks):
     pose (3,) = [t_x, t_y, θ]; landmarks (n, 2). Returns z (n, 2) with z_k = R(θ)ᵀ(m_k − t),
     J_pose (n, 2, 3) = [−Rᵀ, (dR/dθ)ᵀ(m_k − t)] and J_landmark (2, 2) = Rᵀ (the same for every k).
     """
-    pose = np.asarray(pose, dtype=float)
-    landmarks = np.asarray(landmarks, dtype=float)
+    pose = float_array(pose, "pose")
+    landmarks = float_array(landmarks, "landmarks")
     if pose.shape != (3,) or not np.all(np.isfinite(pose)):
         raise ValueError(f"pose must be a finite array of shape (3,), got shape {pose.shape}")
     if landmarks.ndim != 2 or landmarks.shape[1] != 2 or not np.all(np.isfinite(landmarks)):
@@ -155,11 +155,11 @@ def _check_scenario_arguments(n_landmarks, size, n_visible, max_range, p_detect,
         raise ValueError(f"p_detect must be a probability in [0, 1], got {p_detect!r}")
     if candidate_range is not None:
         candidate_range = positive_number(candidate_range, "candidate_range")
-    sig = np.asarray(pose_sigma, dtype=float)
+    sig = float_array(pose_sigma, "pose_sigma")
     if sig.shape != (3,) or not np.all(np.isfinite(sig)) or np.any(sig <= 0):
         raise ValueError(f"pose_sigma must be three positive numbers (σx, σy, σθ), got {pose_sigma!r}")
-    corr = DEFAULT_POSE_CORRELATION if pose_correlation is None else np.asarray(pose_correlation, dtype=float)
-    if corr.shape != (3, 3) or not np.allclose(corr, corr.T) or not np.allclose(np.diag(corr), 1.0) \
+    corr = DEFAULT_POSE_CORRELATION if pose_correlation is None else float_array(pose_correlation, "pose_correlation")
+    if corr.shape != (3, 3) or not np.all(np.isfinite(corr)) or not np.allclose(corr, corr.T) or not np.allclose(np.diag(corr), 1.0) \
             or np.min(np.linalg.eigvalsh(corr)) <= 0:
         raise ValueError("pose_correlation must be a 3×3 symmetric positive-definite matrix with unit diagonal")
     return size, landmark_sigma, meas_sigma, max_range, candidate_range, sig, corr

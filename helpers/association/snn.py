@@ -41,7 +41,7 @@ from scipy import linalg
 from .compatibility import (check_bundle_density, individual_compatibility, individual_compatibility_matrix,
                             joint_compatibility)
 from ..gaussian import chi2inv, confidence_level, square_r_factor
-from ..validation import feature_columns, finite_number
+from ..validation import feature_columns, finite_number, float_array
 
 __all__ = ["snn", "snn_reference"]
 
@@ -60,7 +60,7 @@ def _check_flag(flag):
 def _check_inputs(density, Y, sU, n_sigma, enforce_joint_compatibility):
     """(μ, Y, sU, enforce) of a valid SNN call; bad input raises ValueError naming the argument."""
     check_bundle_density(density, allow_empty=False)
-    Y = feature_columns(Y)
+    Y = feature_columns(float_array(Y, "Y"))
     sU = finite_number(sU, "sU")
     enforce = _check_flag(enforce_joint_compatibility)
     _gate(n_sigma, 2)
