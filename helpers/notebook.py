@@ -17,6 +17,8 @@ import math
 import numbers
 import textwrap
 
+import numpy as np
+
 __all__ = ["Claims", "show_source", "source_lines"]
 
 
@@ -60,10 +62,14 @@ class Claims:
         """Guard one claim of the text. Returns the condition as a bool.
 
         At the defaults a false claim raises AssertionError naming it; with changed parameters it prints
-        ``note (your parameters): no longer holds: <claim>`` once and returns False.
+        ``note (your parameters): no longer holds: <claim>`` once and returns False. ``condition`` is one truth
+        value (Python truthiness); a numpy array of several values raises ValueError.
         """
         if not isinstance(claim, str) or not claim:
             raise ValueError("claim must be a non-empty string saying what the text claims")
+        if isinstance(condition, np.ndarray) and condition.size != 1:
+            raise ValueError(f"condition must be one truth value (e.g. np.all(...) of an array), got an array of "
+                             f"shape {condition.shape}")
         ok = bool(condition)
         if not ok:
             if self.at_defaults:
@@ -94,15 +100,23 @@ def show_source(obj, start: str | None = None, stop: str | None = None):
     """Display the source of ``obj`` (syntax-highlighted in Jupyter, plain text elsewhere).
 
     ``start`` / ``stop``: show only the lines from the first one containing ``start`` up to (excluding) the
-    first later one containing ``stop`` — e.g. one method's body part that a coursework question edits.
+    first later one containing ``stop`` — e.g. one method's body part that a coursework question edits. Either
+    may be None (from the first line / to the end); a string that no line contains raises ValueError (a typo
+    would otherwise show the wrong lines silently).
     """
+    for arg, value in (("start", start), ("stop", stop)):
+        if value is not None and (not isinstance(value, str) or not value):
+            raise ValueError(f"{arg} must be a non-empty string or None, got {value!r}")
     text = source_lines(obj)
     if start is not None or stop is not None:
         lines = text.splitlines()
         first = next((i for i, line in enumerate(lines) if start is None or start in line), None)
         if first is None:
-            raise ValueError(f"no line of {getattr(obj, '__qualname__', obj)} contains {start!r}")
-        last = next((i for i in range(first + 1, len(lines)) if stop is not None and stop in lines[i]), len(lines))
+            raise ValueError(f"no line of {getattr(obj, '__qualname__', obj)} contains start {start!r}")
+        last = next((i for i in range(first + 1, len(lines)) if stop is not None and stop in lines[i]), None)
+        if last is None and stop is not None:
+            raise ValueError(f"no line of {getattr(obj, '__qualname__', obj)} after {start!r} contains stop {stop!r}")
+        last = len(lines) if last is None else last
         text = textwrap.dedent("\n".join(lines[first:last])) + "\n"
     name = getattr(obj, "__qualname__", getattr(obj, "__name__", repr(obj)))
     module = getattr(inspect.unwrap(obj), "__module__", "")

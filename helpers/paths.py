@@ -15,5 +15,11 @@ def data_dir() -> pathlib.Path:
 
 
 def data_path(*parts: str) -> pathlib.Path:
-    """A path under ``data/``, e.g. ``data_path("datasets", "w10000.graph.gz")``."""
+    """A path under ``data/``, e.g. ``data_path("datasets", "w10000.graph.gz")``.
+
+    Every part is a non-empty relative path string without ``..`` (a path outside ``data/`` raises ValueError)."""
+    for part in parts:
+        if not isinstance(part, str) or not part or pathlib.PurePath(part).is_absolute() \
+                or ".." in pathlib.PurePath(part).parts:
+            raise ValueError(f"data_path parts must be non-empty relative names inside data/ (no '..'), got {part!r}")
     return data_dir().joinpath(*parts)

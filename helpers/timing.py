@@ -13,7 +13,9 @@ __all__ = ["timed", "best_of"]
 
 
 def timed(fn, *args, **kwargs):
-    """(result, seconds) of one call ``fn(*args, **kwargs)``."""
+    """(result, seconds) of one call ``fn(*args, **kwargs)``; ``fn``'s own exceptions propagate unchanged."""
+    if not callable(fn):
+        raise ValueError(f"fn must be callable, got {type(fn).__name__}")
     t0 = time.perf_counter()
     result = fn(*args, **kwargs)
     return result, time.perf_counter() - t0

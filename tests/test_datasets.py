@@ -138,3 +138,104 @@ def test_victoria_and_g2o_strict_errors(tmp_path):
         datasets.read_toro(tmp_path / "missing.graph")
     with pytest.raises(ValueError, match="unknown dataset"):
         datasets.load_dataset("intel")
+
+
+# ----- every shipped dataset (all 2-D graph files of GTSAM's gtsam/Data that GTSAM reads) against GTSAM -----------
+#: readG2o refuses the TORO information layout of these (its NoiseFormatG2O wants I11 I12 I13 I22 I23 I33): load2D
+_TORO_LAYOUT = {"w100", "w10000", "example"}
+#: GTSAM's readG2o ignores LANDMARK2 lines: its graph of these files holds the relative-pose edges only
+_LANDMARK2 = {"cityTrees_reduced_1k", "victoriaPark_reduced_1k"}
+
+
+@pytest.fixture(scope="module")
+def peer(gtsam, tmp_path_factory):
+    """name -> (our GraphData, GTSAM graph, GTSAM initial values, GTSAM reader used), cached per module."""
+    cache, folder = {}, tmp_path_factory.mktemp("gtsam_copies")
+
+    def get(name, reader=None):
+        reader = reader or ("load2D" if name in _TORO_LAYOUT else "readG2o")
+        if (name, reader) not in cache:
+            plain = _plain_copy(name, folder)
+            graph, initial = gtsam.load2D(plain) if reader == "load2D" else gtsam.readG2o(plain, False)
+            cache[name, reader] = (datasets.read_dataset(name), graph, initial, reader)
+        return cache[name, reader]
+
+    return get
+
+
+def _split_chi2(opt):
+    """(χ² of the relative-pose edges, χ² of the landmark edges)."""
+    se2 = sum(e.chi2() for e in opt.edges() if isinstance(e, EdgeSE2))
+    return se2, sum(e.chi2() for e in opt.edges() if not isinstance(e, EdgeSE2))
+
+
+def _gtsam_landmark2_chi2(gtsam, data, opt):
+    """χ² of the LANDMARK2 edges computed with GTSAM's Pose2.transformTo at the optimiser's estimates."""
+    total = 0.0
+    for kind, i, j, z, info in data.edges:
+        if kind == "xy":
+            pose = gtsam.Pose2(*opt.vertex(i, VertexSE2).estimate)
+            e = pose.transformTo(opt.vertex(j, VertexPointXY).estimate) - z
+            total += e @ info @ e
+    return total
+
+
+def _compare(gtsam, name, data, graph, values, opt):
+    ours = opt.chi2()
+    theirs = 2 * graph.error(values)
+    if name not in _LANDMARK2:
+        assert graph.size() == len(data.edges)
+        assert ours == pytest.approx(theirs, rel=1e-10)
+        return
+    se2, landmarks = _split_chi2(opt)
+    assert graph.size() == sum(e[0] == "se2" for e in data.edges) < len(data.edges)
+    assert se2 == pytest.approx(theirs, rel=1e-10, abs=1e-18)
+    assert landmarks == pytest.approx(_gtsam_landmark2_chi2(gtsam, data, opt), rel=1e-10)
+    assert ours == pytest.approx(se2 + landmarks, rel=1e-12)
+
+
+@pytest.mark.parametrize("name", sorted(datasets.DATASETS))
+def test_initial_chi2_and_values_equal_gtsam(gtsam, peer, name):
+    data, graph, initial, _ = peer(name)
+    opt = datasets.build_optimizer(data)
+    _compare(gtsam, name, data, graph, initial, opt)
+    pid, poses, lid, points = datasets.pose_arrays(opt)
+    theirs = np.array([[p.x(), p.y(), p.theta()] for p in (initial.atPose2(int(i)) for i in pid)])
+    np.testing.assert_allclose(poses[:, :2], theirs[:, :2], atol=1e-9)
+    np.testing.assert_allclose(np.cos(poses[:, 2] - theirs[:, 2]), 1.0, atol=1e-12)
+    if name not in _LANDMARK2 and len(lid):
+        np.testing.assert_allclose(points, [initial.atPoint2(gtsam.symbol("l", int(j))) for j in lid], atol=1e-9)
+
+
+@pytest.mark.parametrize("name", sorted(datasets.DATASETS))
+def test_perturbed_chi2_equals_gtsam(gtsam, peer, name):
+    """Away from the initial values (where odometry errors vanish) too: a seeded perturbation of every vertex.
+
+    Landmarks move through ``Values.retract`` (load2D stores them as Point2, which ``Values.update`` from Python
+    cannot write): x + d in both libraries."""
+    data, graph, initial, reader = peer(name, "load2D" if name in _TORO_LAYOUT | {"victoria_park"} else None)
+    opt = datasets.build_optimizer(data)
+    rng = np.random.default_rng(17)
+    steps, poses = {}, {}
+    for v in opt.vertices():
+        step = rng.normal(0.0, 0.05, v.estimate.shape)
+        v.set_estimate(v.estimate + step)
+        if isinstance(v, VertexSE2):
+            poses[v.id] = v.estimate
+        elif name not in _LANDMARK2:
+            steps[gtsam.symbol("l", v.id)] = step
+    delta = gtsam.VectorValues()
+    for key in initial.keys():          # poses: a zero step (then set exactly below); landmarks: x + step
+        delta.insert(key, steps.get(key, np.zeros(3)))
+    values = initial.retract(delta)
+    for pid, x in poses.items():
+        values.update(pid, gtsam.Pose2(*x))
+    _compare(gtsam, name, data, graph, values, opt)
+
+
+def test_catalogue_files_are_documented():
+    readme = data_path("README.md").read_text(encoding="utf-8")
+    sums = _sha256sums()
+    for name, file in datasets.DATASETS.items():
+        assert f"`{file}`" in readme, f"{file} is not described in data/README.md"
+        assert file.removesuffix(".gz") in sums

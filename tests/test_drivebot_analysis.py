@@ -58,11 +58,18 @@ def test_ellipse_axes_reconstruct_covariance(seed):
     np.testing.assert_allclose(R, P, rtol=1e-9, atol=1e-12)
 
 
-def test_plot_covariance_ellipses_adds_one_collection():
+def test_plot_covariance_ellipses_draws_the_ellipses_of_the_inputs():
     fig, ax = plt.subplots()
-    coll = an.plot_covariance_ellipses(ax, [[0, 0], [1, 1]], np.array([np.eye(2), np.diag([4.0, 1.0])]),
-                                       edgecolor="k")
+    means = np.array([[0.0, 0.0], [1.0, 1.0], [-2.0, 3.0]])
+    P = np.array([np.eye(2), np.diag([4.0, 1.0]), [[1.0, 0.9], [0.9, 1.0]]])
+    coll = an.plot_covariance_ellipses(ax, means, P, n_sigma=2.0, edgecolor="k")
     assert len(ax.collections) == 1 and coll is ax.collections[0]
+    np.testing.assert_allclose(coll.get_offsets(), means)               # one ellipse at each mean
+    s = np.sqrt(chi2inv(confidence_level(2.0), 2))
+    # full axes 2·√(λ χ²₂): diag(4, 1) → 4s × 2s; eigenvalues of the correlated block 1.9 and 0.1 at 45°
+    np.testing.assert_allclose(coll.get_widths(), 2 * s * np.sqrt([1.0, 4.0, 1.9]))
+    np.testing.assert_allclose(coll.get_heights(), 2 * s * np.sqrt([1.0, 1.0, 0.1]))
+    np.testing.assert_allclose(np.mod(coll.get_angles()[1:], 180.0), [0.0, 45.0], atol=1e-9)   # degrees
     with pytest.raises(ValueError, match="means"):
         an.plot_covariance_ellipses(ax, [[0, 0]], np.array([np.eye(2), np.eye(2)]))
     plt.close(fig)
@@ -120,7 +127,17 @@ def test_fit_tangent_centre_recovers_centre():
     P = 4.0 * t[:, :, None] * t[:, None, :] + 0.5 * n[:, :, None] * n[:, None, :]
     np.testing.assert_allclose(an.fit_tangent_centre(pts, P), centre, atol=1e-8)
     assert np.max(an.tangent_misalignment(pts, P, centre)) < 1e-8
-    assert np.min(an.tangent_misalignment(pts, P, centre + [200.0, 0.0])) >= 0
+
+
+@pytest.mark.parametrize("centre, expected", [
+    ([0.0, 0.0], 0.6),     # radial (3, 4)/5, major axis along x: |cos| = 3/5
+    ([3.0, 0.0], 0.0),     # radial along y: the axis is tangent
+    ([0.0, 4.0], 1.0),     # radial along x: the axis points at the centre
+    ([7.0, 1.0], 0.8),     # radial (−4, 3)/5: |cos| = 4/5
+])
+def test_tangent_misalignment_known_geometry(centre, expected):
+    P = np.diag([4.0, 1.0])[None]            # major axis along x
+    assert an.tangent_misalignment([[3.0, 4.0]], P, centre) == pytest.approx([expected], abs=1e-12)
 
 
 def test_tangent_bad_inputs():

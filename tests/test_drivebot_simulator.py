@@ -166,3 +166,31 @@ def test_simulator_bad_input():
         DriveBotSimulator(SimulatorConfiguration(), load_scenario("q1_e"), seed=-1)
     with pytest.raises(RuntimeError, match="start"):
         DriveBotSimulator(SimulatorConfiguration(), load_scenario("q1_e")).events()
+
+
+def test_non_positive_laser_ranges_are_dropped_and_counted():
+    """A landmark at the start position: about half of its noisy ranges come out ≤ 0 while the vehicle is
+    near it. Those readings are not reported (the other landmark's are), and the simulator counts them."""
+    from helpers.drivebot.scenarios import Scenario
+
+    sc = Scenario("near", landmarks=np.array([[0.0, 5.0], [0.0, 0.0]]), landmark_ids=np.array([1, 2]),
+                  waypoints=np.array([[20.0], [0.0]]))
+    cfg = SimulatorConfiguration(enable_laser=True, maximum_step_number=30)
+    sim = DriveBotSimulator(cfg, sc, seed=3)
+    sim.start()
+    reported = {1: 0, 2: 0}
+    while sim.keep_running():
+        for ev in sim.events():
+            if ev.type is EventType.LANDMARK:
+                assert np.all(ev.data[0] > 0)
+                for i in ev.landmark_ids:
+                    reported[int(i)] += 1
+        sim.step()
+    assert sim.dropped_laser_readings > 0
+    assert reported[2] > reported[1]                   # only landmark 1, at the start, loses readings
+    noise_free = DriveBotSimulator(cfg.replace(perturb_with_noise=False), sc, seed=3)
+    noise_free.start()
+    while noise_free.keep_running():
+        noise_free.events()
+        noise_free.step()
+    assert noise_free.dropped_laser_readings == 1      # the exact range 0 at the start is not reported either

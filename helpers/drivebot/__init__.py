@@ -4,7 +4,8 @@ Modules: ``events`` (event types, the time-ordered queue), ``config`` (``Simulat
 ``scenarios`` (maps and routes in ``data/drivebot/``), ``scenario_files`` (generating and writing them),
 ``simulator`` (``DriveBotSimulator``), ``edges``
 (vehicle/landmark vertices, the kinematics edge, the buggy compass edge), ``slam_system``
-(``DriveBotSLAMSystem``), ``runner`` (``run_question``, ``Results``).
+(``DriveBotSLAMSystem``; its options are validated by ``options``), ``runner`` (``run_question``, ``Results``;
+a run that fails part-way re-raises its error with the partial ``Results`` attached).
 
 One entry point for every notebook::
 
@@ -16,11 +17,11 @@ One entry point for every notebook::
 from .config import SimulatorConfiguration
 from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex
 from .events import Event, EventQueue, EventType
-from .runner import QUESTIONS, Results, run, run_question
+from .runner import QUESTIONS, Results, RunError, run, run_question
 from .scenarios import Scenario, load_scenario
 from .simulator import DriveBotSimulator
 from .slam_system import DriveBotSLAMSystem
 
-__all__ = ["run_question", "run", "Results", "QUESTIONS", "SimulatorConfiguration", "DriveBotSimulator",
+__all__ = ["run_question", "run", "Results", "RunError", "QUESTIONS", "SimulatorConfiguration", "DriveBotSimulator",
            "DriveBotSLAMSystem", "Scenario", "load_scenario", "Event", "EventType", "EventQueue",
            "VehicleVertex", "LandmarkVertex", "VehicleKinematicsEdge", "BuggyCompassEdge"]

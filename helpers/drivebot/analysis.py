@@ -94,8 +94,13 @@ def ellipse_axes(P, n_sigma=3.0):
     Returns (a, b, angle) arrays of shape (L,); a_i = √(λ_max · χ²₂(c)), c = 2Φ(n_σ) − 1."""
     P = _cov_stack(P, "P")
     scale = chi2inv(confidence_level(n_sigma), 2)
+    size = np.maximum(np.max(np.abs(P), axis=(1, 2)), np.finfo(float).tiny)
+    if np.any(np.max(np.abs(P - np.swapaxes(P, 1, 2)), axis=(1, 2)) > 1e-9 * size):
+        raise ValueError("P must be symmetric covariances")
     lam, V = np.linalg.eigh(0.5 * (P + np.swapaxes(P, 1, 2)))
-    lam = np.clip(lam, 0.0, None)
+    if np.any(lam[:, 0] < -1e-9 * size):
+        raise ValueError(f"P must be positive semi-definite covariances, got an eigenvalue {np.min(lam):.3g}")
+    lam = np.clip(lam, 0.0, None)   # round-off only
     a = np.sqrt(lam[:, 1] * scale)
     b = np.sqrt(lam[:, 0] * scale)
     angle = np.arctan2(V[:, 1, 1], V[:, 0, 1])
@@ -107,6 +112,8 @@ def plot_covariance_ellipses(ax, means, P, n_sigma=3.0, **kwargs):
     EllipseCollection (no per-ellipse patches). kwargs go to the collection (``edgecolor``, ``lw``, …)."""
     from matplotlib.collections import EllipseCollection
 
+    if not (hasattr(ax, "add_collection") and hasattr(ax, "transData")):
+        raise ValueError(f"ax must be a matplotlib Axes, got {type(ax).__name__}")
     P = _cov_stack(P, "P")
     means = _points(means, "means", P.shape[0])
     a, b, angle = ellipse_axes(P, n_sigma)
@@ -218,6 +225,10 @@ def fit_tangent_centre(points, P) -> np.ndarray:
     w = 1.0 - np.divide(b ** 2, a ** 2, out=np.ones_like(a), where=a > 0)
     u = np.column_stack([np.cos(angle), np.sin(angle)])
     A = w[:, None] * u
+    sv = np.linalg.svd(A, compute_uv=False)
+    if sv[-1] <= 1e-12 * max(sv[0], np.finfo(float).tiny):
+        raise ValueError("the landmarks' major axes do not determine a centre (the ellipses are round or their axes "
+                         "all parallel): P needs anisotropic covariances in at least two directions")
     rhs = w * np.sum(u * points, axis=1)
     centre, *_ = np.linalg.lstsq(A, rhs, rcond=None)
     return centre

@@ -28,6 +28,17 @@ Field names are the MATLAB names in snake_case (``perturbWithNoise`` → ``pertu
 | laser_measurement_period     | 0.1 s                        |                                          |
 | laser_detection_range        | 10 m                         | 360° field of view                       |
 | r_laser                      | diag(0.1, π/180)²            | σ range, σ bearing                       |
+
+Bounds (``validate``, ValueError naming the field): every number positive and finite except where the table
+says otherwise; ``max_delta`` ≤ π/2 (a steering angle beyond 90° is not a bicycle model); every covariance is a
+symmetric positive-definite matrix whose standard deviations (square roots of its eigenvalues) lie in
+[1e−6, 1e6] of their units (m, rad, m/s, rad/s) and differ by at most a factor 1e6 within one matrix
+(``SIGMA_BOUNDS``, ``SIGMA_RATIO``): outside them the information matrices Ω = R⁻¹ span more than ~1e24 and
+the optimiser's normal equations lose every significant digit (χ² ~1e270 or no covariance at all).
+
+A configuration is read-only once constructed (a simulator and SLAM systems read it while they run; an edit
+would apply half-way): assigning a field raises ``dataclasses.FrozenInstanceError`` and the matrix fields are
+read-only arrays. ``replace(**changes)`` returns a validated changed copy.
 """
 from __future__ import annotations
 
@@ -38,7 +49,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SimulatorConfiguration"]
+from ..validation import boolean, float_array
+
+__all__ = ["SimulatorConfiguration", "SIGMA_BOUNDS", "SIGMA_RATIO"]
+
+#: Allowed range of every standard deviation of a covariance field, in its own units (module docstring).
+SIGMA_BOUNDS = (1e-6, 1e6)
+#: Largest allowed ratio of two standard deviations of one covariance field (condition number of R ≤ ratio²).
+SIGMA_RATIO = 1e6
 
 
 def _diag(*sigmas):
@@ -76,6 +94,14 @@ class SimulatorConfiguration:
 
     def __post_init__(self):
         self.validate()
+        object.__setattr__(self, "_read_only", True)
+
+    def __setattr__(self, name, value):
+        if getattr(self, "_read_only", False):
+            raise dataclasses.FrozenInstanceError(
+                f"SimulatorConfiguration is read-only once constructed (cannot assign {name!r}); use "
+                f"config.replace({name}=...) for a validated copy")
+        object.__setattr__(self, name, value)
 
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
@@ -89,18 +115,22 @@ class SimulatorConfiguration:
         return dataclasses.replace(self, **changes)
 
     def validate(self) -> None:
-        """Check every field; raise ValueError naming the field and what was expected."""
+        """Check every field (bounds: module docstring); raise ValueError naming the field and what was expected.
+
+        Normalises the fields in place (floats, bools, read-only float arrays); idempotent."""
         for name in ("dt", "wheelbase", "max_diff_delta_rate", "max_delta", "max_speed", "min_speed",
                      "max_acceleration", "compass_measurement_period", "gps_measurement_period",
                      "laser_measurement_period", "laser_detection_range"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be a positive finite number, got {v!r}")
-            setattr(self, name, float(v))
+            object.__setattr__(self, name, float(v))
+        if self.max_delta > 0.5 * math.pi:
+            raise ValueError(f"max_delta must be at most π/2 (a steering angle beyond 90°), got {self.max_delta!r}")
         v = self.sensor_dither_time
         if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v < 0:
             raise ValueError(f"sensor_dither_time must be a non-negative finite number, got {v!r}")
-        self.sensor_dither_time = float(v)
+        object.__setattr__(self, "sensor_dither_time", float(v))
         if self.min_speed > self.max_speed:
             raise ValueError(f"min_speed ({self.min_speed}) must not exceed max_speed ({self.max_speed})")
         m = self.maximum_step_number
@@ -108,21 +138,36 @@ class SimulatorConfiguration:
                 (math.isfinite(m) and m != int(m)) or math.isnan(m):
             raise ValueError(f"maximum_step_number must be a positive integer or inf, got {m!r}")
         for name in ("perturb_with_noise", "enable_odometry", "enable_compass", "enable_gps", "enable_laser"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
-            setattr(self, name, bool(getattr(self, name)))
+            object.__setattr__(self, name, boolean(getattr(self, name), name))
         v = self.compass_angular_offset
         if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
             raise ValueError(f"compass_angular_offset must be a finite angle in radians, got {v!r}")
-        self.compass_angular_offset = float(v)
-        off = np.asarray(self.gps_position_offset, dtype=float).reshape(-1)
+        object.__setattr__(self, "compass_angular_offset", float(v))
+        off = float_array(self.gps_position_offset, "gps_position_offset").reshape(-1).copy()
         if off.shape != (2,) or not np.all(np.isfinite(off)):
             raise ValueError(f"gps_position_offset must be 2 finite numbers, got {self.gps_position_offset!r}")
-        self.gps_position_offset = off
+        off.flags.writeable = False
+        object.__setattr__(self, "gps_position_offset", off)
         for name, n in (("r_odometry", 3), ("r_compass", 1), ("r_gps", 2), ("r_laser", 2)):
-            R = np.atleast_2d(np.asarray(getattr(self, name), dtype=float))
-            if R.shape != (n, n) or not np.all(np.isfinite(R)) or not np.allclose(R, R.T):
-                raise ValueError(f"{name} must be a symmetric finite {n}×{n} matrix, got {getattr(self, name)!r}")
-            if np.min(np.linalg.eigvalsh(R)) <= 0:
-                raise ValueError(f"{name} must be positive definite")
-            setattr(self, name, R)
+            object.__setattr__(self, name, _covariance(getattr(self, name), name, n))
+
+
+def _covariance(value, name, n):
+    """A covariance field as a read-only (n, n) float copy: symmetric, finite, positive definite, with its
+    standard deviations inside SIGMA_BOUNDS and within SIGMA_RATIO of each other."""
+    R = np.atleast_2d(float_array(value, name)).copy()
+    if R.shape != (n, n) or not np.all(np.isfinite(R)) or not np.allclose(R, R.T):
+        raise ValueError(f"{name} must be a symmetric finite {n}×{n} matrix, got {value!r}")
+    eig = np.linalg.eigvalsh(R)
+    if np.min(eig) <= 0:
+        raise ValueError(f"{name} must be positive definite")
+    lo, hi = SIGMA_BOUNDS
+    sigma = np.sqrt(eig)
+    if sigma[0] < lo or sigma[-1] > hi:
+        raise ValueError(f"{name} must have standard deviations between {lo:g} and {hi:g} (its units), got "
+                         f"σ from {sigma[0]:.3g} to {sigma[-1]:.3g}")
+    if sigma[-1] > SIGMA_RATIO * sigma[0]:
+        raise ValueError(f"{name} has standard deviations {sigma[0]:.3g} … {sigma[-1]:.3g} that differ by more "
+                         f"than a factor {SIGMA_RATIO:g} (ill-conditioned)")
+    R.flags.writeable = False
+    return R

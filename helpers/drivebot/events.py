@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..validation import finite_number
+
 __all__ = ["EventType", "Event", "EventQueue"]
 
 
@@ -49,7 +51,7 @@ class Event:
     """One time-stamped event. ``data`` and ``covariance`` are numpy arrays (validated on construction).
 
     ``offset`` holds the compass angular offset (COMPASS) or the GPS lever arm (GPS), else None;
-    ``landmark_ids`` the 1-based landmark ids of a LANDMARK event's columns, else None.
+    ``landmark_ids`` the 1-based, distinct landmark ids of a LANDMARK event's columns, else None.
     """
 
     time: float
@@ -62,10 +64,7 @@ class Event:
     def __post_init__(self):
         if not isinstance(self.type, EventType):
             raise ValueError(f"type must be an EventType, got {self.type!r}")
-        t = float(self.time)
-        if not np.isfinite(t):
-            raise ValueError(f"time must be finite, got {self.time!r}")
-        object.__setattr__(self, "time", t)
+        object.__setattr__(self, "time", finite_number(self.time, "time"))
         data = np.asarray(self.data, dtype=float)
         cov = np.asarray(self.covariance, dtype=float)
         if cov.ndim == 1:  # a covariance given as a vector means diag(vector)
@@ -80,6 +79,8 @@ class Event:
             ids = np.asarray(self.landmark_ids)
             if ids.shape != (data.shape[1],) or not np.issubdtype(ids.dtype, np.integer) or np.any(ids < 1):
                 raise ValueError(f"landmark_ids must be {data.shape[1]} positive integers (1-based), got {self.landmark_ids!r}")
+            if np.unique(ids).size != ids.size:
+                raise ValueError(f"landmark_ids of one LANDMARK event must be distinct, got {ids.tolist()}")
             object.__setattr__(self, "landmark_ids", ids.astype(np.int64))
             dim = 2
         else:

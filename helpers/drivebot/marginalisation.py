@@ -34,9 +34,12 @@ operation), :func:`hessian_blocks` (H re-ordered by vertex, for spy plots).
 """
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
 from ..graph import BaseEdge, BaseVertex, VertexPointXY, VertexSE2, wrap_angle
+from ..validation import float_array, int_array
 
 __all__ = ["schur_complement", "local_system", "linear_prior_factor", "linear_prior_class", "marginalise_vertex",
            "hessian_blocks"]
@@ -44,11 +47,24 @@ __all__ = ["schur_complement", "local_system", "linear_prior_factor", "linear_pr
 _SUPPORTED = (VertexSE2, VertexPointXY)
 
 
-def _square(H, name):
-    H = np.asarray(H, dtype=float)
+def _symmetric(H, name):
+    """A finite symmetric square float matrix (asymmetry up to 1e−9 of its largest entry is round-off)."""
+    H = float_array(H, name)
     if H.ndim != 2 or H.shape[0] != H.shape[1] or not np.all(np.isfinite(H)):
         raise ValueError(f"{name} must be a finite square matrix, got shape {H.shape}")
+    if H.size and np.max(np.abs(H - H.T)) > 1e-9 * max(np.max(np.abs(H)), np.finfo(float).tiny):
+        raise ValueError(f"{name} must be symmetric")
     return H
+
+
+def _indices(values, n, name):
+    """Distinct indices in [0, n) as an int64 array (empty allowed)."""
+    idx = int_array(np.ravel(values), name)
+    if np.any(idx < 0) or np.any(idx >= n):
+        raise ValueError(f"{name} has an index out of range [0, {n}): {idx.tolist()}")
+    if np.unique(idx).size != idx.size:
+        raise ValueError(f"{name} has duplicate indices: {idx.tolist()}")
+    return idx
 
 
 def schur_complement(H, b, keep, marginalise):
@@ -57,12 +73,14 @@ def schur_complement(H, b, keep, marginalise):
     ``H`` (n, n) symmetric with an invertible (m, m) block, ``b`` (n,), ``keep`` and ``marginalise`` disjoint
     index arrays. Plain numpy (dense solve), the reference for :func:`marginalise_vertex`.
     """
-    H = _square(H, "H")
-    b = np.asarray(b, dtype=float)
+    H = _symmetric(H, "H")
+    b = float_array(b, "b")
     if b.shape != (H.shape[0],):
         raise ValueError(f"b must have shape ({H.shape[0]},), got {b.shape}")
-    keep, marg = (np.asarray(i, dtype=np.int64).ravel() for i in (keep, marginalise))
-    if np.intersect1d(keep, marg).size or np.any(np.r_[keep, marg] < 0) or np.any(np.r_[keep, marg] >= H.shape[0]):
+    if not np.all(np.isfinite(b)):
+        raise ValueError("b must be finite (no NaN or inf)")
+    keep, marg = _indices(keep, H.shape[0], "keep"), _indices(marginalise, H.shape[0], "marginalise")
+    if np.intersect1d(keep, marg).size:
         raise ValueError("keep and marginalise must be disjoint indices into H")
     if marg.size == 0:
         return H[np.ix_(keep, keep)].copy(), b[keep].copy()
@@ -145,13 +163,20 @@ def linear_prior_class(vertex_types, rank):
 
 def linear_prior_factor(lam, eta, rtol=1e-10):
     """(J (r, n), r₀ (r,)) of equation (2) with JᵀJ = Λ and Jᵀr₀ = η (eigenvalues ≤ rtol·max dropped)."""
-    lam = _square(lam, "lam")
-    eta = np.asarray(eta, dtype=float)
+    lam = _symmetric(lam, "lam")
+    eta = float_array(eta, "eta")
     if eta.shape != (lam.shape[0],):
         raise ValueError(f"eta must have shape ({lam.shape[0]},), got {eta.shape}")
+    if not np.all(np.isfinite(eta)):
+        raise ValueError("eta must be finite (no NaN or inf)")
+    if isinstance(rtol, bool) or not isinstance(rtol, numbers.Real) or not 0 <= rtol < 1:
+        raise ValueError(f"rtol must be a number in [0, 1), got {rtol!r}")
     w, V = np.linalg.eigh(0.5 * (lam + lam.T))
     if w.size == 0 or w[-1] <= 0:
         raise ValueError("lam has no positive eigenvalue: the marginal carries no information")
+    if w[0] < -1e-8 * w[-1]:
+        raise ValueError(f"lam must be positive semi-definite (an information matrix), but has the eigenvalue "
+                         f"{w[0]:.3g} (largest {w[-1]:.3g})")
     pos = w > rtol * w[-1]
     root = np.sqrt(w[pos])
     return root[:, None] * V[:, pos].T, (V[:, pos].T @ eta) / root
@@ -181,8 +206,11 @@ def marginalise_vertex(graph, vertex):
 def hessian_blocks(graph, vertices):
     """H of ``graph`` (built structure) re-ordered so that the free ``vertices`` come in the given order;
     returns (H dense, starts) with ``starts`` each vertex's first row (for spy plots with block grid lines)."""
-    idx, starts, n = [], [], 0
+    idx, starts, n, seen = [], [], 0, set()
     for v in vertices:
+        if v in seen:
+            raise ValueError(f"vertices must be distinct, got {v!r} twice")
+        seen.add(v)
         if not isinstance(v, BaseVertex) or v.graph is not graph or v.hessian_index is None or v.hessian_index < 0:
             raise ValueError(f"every vertex must be a free vertex of the graph with a built structure, got {v!r}")
         d = type(v).dimension

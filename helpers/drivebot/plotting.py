@@ -12,8 +12,12 @@ stroke across the whole axis; ``break_at_wraps`` returns the arrays with those g
 """
 from __future__ import annotations
 
+import math
+import numbers
+
 import numpy as np
 
+from ..validation import float_array
 from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex
 from ..graph import EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing
 
@@ -97,7 +101,7 @@ def plot_state_errors(results, axes, n_sigma: float = 2.0, label: str | None = N
     """Estimate − truth for x, y, ψ (ψ wrapped) with ±n_σ bounds from the covariance history, on 3 axes."""
     _check_results(results)
     _check_axes(axes, 3)
-    if isinstance(n_sigma, bool) or not isinstance(n_sigma, (int, float)) or not n_sigma > 0:
+    if isinstance(n_sigma, bool) or not isinstance(n_sigma, numbers.Real) or not 0 < n_sigma < math.inf:
         raise ValueError(f"n_sigma must be a positive number, got {n_sigma!r}")
     t = results.vehicle_state_time
     err = results.state_error()
@@ -130,11 +134,11 @@ def break_at_wraps(t, angle, period: float = 360.0):
     ``period`` is one full turn in the angle's unit (360 for degrees, 2π for radians). A wrapped angle jumps by
     about one period where it crosses ±period/2; the NaN makes matplotlib break the line there.
     """
-    t = np.asarray(t, dtype=float).reshape(-1)
-    angle = np.asarray(angle, dtype=float).reshape(-1)
-    if t.shape != angle.shape:
-        raise ValueError(f"t and angle must have the same length, got {t.size} and {angle.size}")
-    if isinstance(period, bool) or not isinstance(period, (int, float)) or not np.isfinite(period) or period <= 0:
+    t = float_array(t, "t")
+    angle = float_array(angle, "angle")
+    if t.ndim != 1 or t.shape != angle.shape:
+        raise ValueError(f"t and angle must be 1-D arrays of the same length, got shapes {t.shape} and {angle.shape}")
+    if isinstance(period, bool) or not isinstance(period, numbers.Real) or not np.isfinite(period) or period <= 0:
         raise ValueError(f"period must be a positive number (360 for degrees, 2π for radians), got {period!r}")
     jumps = np.flatnonzero(np.abs(np.diff(angle)) > 0.5 * period) + 1
     return np.insert(t, jumps, np.nan), np.insert(angle, jumps, np.nan)

@@ -36,7 +36,7 @@ import numbers
 import numpy as np
 
 from ..graph.angles import wrap_angle
-from ..validation import int_array, integer, positive_number
+from ..validation import int_array, integer, positive_number, rng_seed
 
 __all__ = ["keep_k_per_group", "straight_segment_mask", "stride_mask", "protect_landmarks",
            "landmark_edge_table", "PruningHook", "KeepKPerVertex", "KeyframePruning",
@@ -165,6 +165,7 @@ def landmark_edge_table(system, dt_default=0.1):
     graph = getattr(system, "graph", system)
     if not (hasattr(graph, "edges") and hasattr(graph, "vertices") and hasattr(graph, "remove_edge")):
         raise ValueError(f"system must be a SLAM system with a graph or a SparseOptimizer, got {type(system).__name__}")
+    dt_default = positive_number(dt_default, "dt_default")
     edges, vid, lid = [], [], []
     for e in graph.edges():
         vs = e.vertices()
@@ -228,12 +229,13 @@ class PruningHook:
 
 
 class KeepKPerVertex(PruningHook):
-    """Keep at most ``k`` landmark edges per vehicle vertex, chosen at random (``seed``)."""
+    """Keep at most ``k`` landmark edges per vehicle vertex, chosen at random (``seed``: a non-negative integer,
+    a sequence of them or a numpy Generator)."""
 
     def __init__(self, k=2, seed=0):
         super().__init__()
         self.k = integer(k, "k", minimum=1)
-        self.rng = np.random.default_rng(seed)
+        self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(rng_seed(seed))
 
     def select(self, table):
         return keep_k_per_group(table["vertex"], self.k, self.rng)

@@ -53,7 +53,8 @@ def fraction_inside(err, variance, n_sigma: float = 2.0) -> np.ndarray:
     """Per row, the fraction of columns with |err| ≤ n_σ·σ, over the columns whose variance is positive.
 
     ``err`` and ``variance`` are (d, N) arrays (e.g. ``Results.state_error()`` and
-    ``Results.vehicle_covariance_history``); columns with zero variance (the fixed first pose) or NaN are left out.
+    ``Results.vehicle_covariance_history``); columns with zero variance (the fixed first pose) or NaN are left out;
+    a negative variance raises ValueError.
     """
     err = np.asarray(err, dtype=float)
     variance = np.asarray(variance, dtype=float)
@@ -61,6 +62,8 @@ def fraction_inside(err, variance, n_sigma: float = 2.0) -> np.ndarray:
         raise ValueError(f"err and variance must be (d, N) arrays of one shape, got {err.shape} and {variance.shape}")
     if isinstance(n_sigma, bool) or not isinstance(n_sigma, numbers.Real) or not n_sigma > 0:
         raise ValueError(f"n_sigma must be a positive number, got {n_sigma!r}")
+    if np.any(variance < 0):
+        raise ValueError("variance must not be negative (NaN marks a missing value)")
     out = np.empty(err.shape[0])
     for i in range(err.shape[0]):
         use = np.isfinite(err[i]) & np.isfinite(variance[i]) & (variance[i] > 0)

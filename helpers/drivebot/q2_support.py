@@ -21,6 +21,7 @@ import numpy as np
 
 from ..figures import COLORS
 from ..validation import int_array, integer
+from .runner import Results
 
 __all__ = ["no_observation_intervals", "interval_mask", "shade_intervals", "mark_gaps_and_closure",
            "landmark_facts", "OnlineRecorder",
@@ -29,6 +30,27 @@ __all__ = ["no_observation_intervals", "interval_mask", "shade_intervals", "mark
 
 
 
+
+
+def _check_results(results):
+    if not isinstance(results, Results):
+        raise ValueError(f"results must be a Results (from run_question), got {type(results).__name__}")
+
+
+def _intervals(intervals) -> np.ndarray:
+    """Inclusive tick intervals as a (K, 2) int64 array with first ≤ last (one pair [first, last] is K = 1)."""
+    iv = np.asarray(intervals)
+    if iv.size == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    if iv.shape == (2,):
+        iv = iv[None]
+    if iv.ndim != 2 or iv.shape[1] != 2:
+        raise ValueError(f"intervals must have shape (K, 2), got {iv.shape}")
+    if iv.dtype == bool or not np.issubdtype(iv.dtype, np.integer):
+        raise ValueError(f"intervals must hold integer ticks, got dtype {iv.dtype}")
+    if np.any(iv[:, 0] > iv[:, 1]):
+        raise ValueError(f"intervals must have first ≤ last in every row, got {iv.tolist()}")
+    return iv.astype(np.int64)
 
 
 def no_observation_intervals(tick, n_steps, min_ticks=2) -> np.ndarray:
@@ -51,11 +73,9 @@ def no_observation_intervals(tick, n_steps, min_ticks=2) -> np.ndarray:
 def interval_mask(ticks, intervals) -> np.ndarray:
     """Boolean mask: which of ``ticks`` lie inside one of the inclusive ``intervals`` (K, 2)."""
     ticks = int_array(ticks, "ticks")
-    iv = np.asarray(intervals)
+    iv = _intervals(intervals)
     if iv.size == 0:
         return np.zeros(ticks.shape, bool)
-    if iv.ndim != 2 or iv.shape[1] != 2:
-        raise ValueError(f"intervals must have shape (K, 2), got {iv.shape}")
     return np.any((ticks[:, None] >= iv[None, :, 0]) & (ticks[:, None] <= iv[None, :, 1]), axis=1)
 
 
@@ -66,7 +86,7 @@ def shade_intervals(ax, intervals, dt, label=None, color="0.85"):
         raise ValueError(f"ax must be a matplotlib Axes, got {type(ax).__name__}")
     if isinstance(dt, bool) or not isinstance(dt, numbers.Real) or not dt > 0:
         raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
-    iv = np.asarray(intervals).reshape(-1, 2)
+    iv = _intervals(intervals)
     for i, (a, b) in enumerate(iv):
         ax.axvspan(dt * a, dt * (b + 1), color=color, lw=0, zorder=0, label=label if i == 0 else None)
 
@@ -75,6 +95,8 @@ def mark_gaps_and_closure(axes, intervals, dt, closure=None, color=None):
     """On each axis of ``axes``: the no-observation ``intervals`` as grey bands (labelled "no landmark in
     range") and, if ``closure`` (a tick) is not None, a dotted vertical line at its time ("loop closure")."""
     color = COLORS["muted"] if color is None else color
+    if closure is not None:
+        closure = integer(closure, "closure (a tick)", minimum=0)
     for ax in np.ravel(axes):
         shade_intervals(ax, intervals, dt, label="no landmark in range")
         if closure is not None:
@@ -87,14 +109,16 @@ def landmark_facts(results, tick, landmark) -> dict:
     Returns arrays {"id", "xy" (L, 2), "corner" (L, 2) nearest route corner (start or waypoint),
     "corner_distance", "n_obs", "first_tick", "last_tick", "mean_speed"} — mean_speed is the vehicle's mean
     true speed (m/s) over the ticks at which it observed the landmark."""
+    _check_results(results)
     tick = int_array(tick, "tick")
     landmark = int_array(landmark, "landmark")
     if tick.shape != landmark.shape:
         raise ValueError(f"tick and landmark must have the same shape, got {tick.shape} and {landmark.shape}")
     sc = results.scenario
     truth = np.asarray(results.vehicle_true_state_history, dtype=float)[:2]
-    if tick.size and tick.max() >= truth.shape[1]:
-        raise ValueError("tick refers to a tick beyond the run's true-state history")
+    if tick.size and (tick.min() < 0 or tick.max() >= truth.shape[1]):
+        raise ValueError(f"tick values must lie in [0, {truth.shape[1]}) (the run's ticks), got "
+                         f"[{tick.min()}, {tick.max()}]")
     dt = float(results.config.dt)
     speed = np.r_[0.0, np.linalg.norm(np.diff(truth, axis=1), axis=0) / dt]
     corners = np.vstack([[0.0, 0.0], np.asarray(sc.waypoints, dtype=float).T])
@@ -132,6 +156,9 @@ class OnlineRecorder:
         self.factor_nnz = {}
 
     def __call__(self, system, k):
+        if not all(hasattr(system, a) for a in ("recommend_optimization", "graph", "platform_estimate")):
+            raise ValueError(f"system must be a DriveBotSLAMSystem, got {type(system).__name__}")
+        k = integer(k, "k", minimum=0)
         optimised = system.recommend_optimization()
         if optimised:
             solver = system.graph.linear_solver
@@ -160,6 +187,8 @@ def mean_rate(t, y, mask) -> float:
     if t.ndim != 1 or y.shape != t.shape or mask.shape != t.shape or mask.dtype != bool:
         raise ValueError(f"t, y and mask must be 1-D of equal length (mask boolean), got {t.shape}, {y.shape}, "
                          f"{mask.shape} {mask.dtype}")
+    if not (np.all(np.isfinite(t[mask])) and np.all(np.isfinite(y[mask]))):
+        raise ValueError("t and y must be finite where mask selects them")
     pair = mask[1:] & mask[:-1]
     dt = np.diff(t)[pair]
     if dt.size == 0:
@@ -174,6 +203,7 @@ def waypoint_ticks(results, radius=1.0) -> np.ndarray:
     controller switches to the next waypoint there); waypoints not reached in the run are left out."""
     if isinstance(radius, bool) or not isinstance(radius, numbers.Real) or not radius > 0:
         raise ValueError(f"radius must be a positive number of metres, got {radius!r}")
+    _check_results(results)
     p = np.asarray(results.vehicle_true_state_history, dtype=float)[:2].T
     out, start = [], 0
     for w in np.asarray(results.scenario.waypoints, dtype=float).T:

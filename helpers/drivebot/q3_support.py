@@ -27,7 +27,7 @@ import numbers
 import numpy as np
 
 from .analysis import position_error_rms
-from .runner import run_variants
+from .runner import Results, run_variants
 
 __all__ = ["run_metrics", "evaluate_seeds", "seed_summary", "format_seed_table", "plot_seed_bars",
            "failures", "spy_hessian", "paired", "format_relative", "METRIC_LABELS"]
@@ -46,6 +46,8 @@ METRIC_LABELS = {
 
 def run_metrics(results) -> dict:
     """The machine-independent quantities (module docstring) and the wall times of one run."""
+    if not isinstance(results, Results):
+        raise ValueError(f"results must be a Results (from run_question / run_variants), got {type(results).__name__}")
     system = results.system
     st = results.graph_statistics()
     system.ensure_structure()
@@ -71,11 +73,11 @@ def run_metrics(results) -> dict:
     }
 
 
-def _check_seeds(seeds):
-    seeds = list(seeds) if not isinstance(seeds, (str, bytes)) else None
+def _check_seeds(seeds, name="seeds"):
+    seeds = list(seeds) if hasattr(seeds, "__iter__") and not isinstance(seeds, (str, bytes, dict)) else None
     if not seeds or not all(isinstance(s, numbers.Integral) and not isinstance(s, bool) and s >= 0 for s in seeds) \
             or len(set(seeds)) != len(seeds):
-        raise ValueError(f"seeds must be a non-empty sequence of distinct non-negative integers, got {seeds!r}")
+        raise ValueError(f"{name} must be a non-empty sequence of distinct non-negative integers, got {seeds!r}")
     return [int(s) for s in seeds]
 
 
@@ -92,7 +94,11 @@ def evaluate_seeds(question: str, variants: dict, seeds, keep=(), **overrides):
             not all(callable(v) or isinstance(v, dict) for v in variants.values()):
         raise ValueError("variants must be a non-empty dict {name: SLAM options dict or options(seed)}")
     seeds = _check_seeds(seeds)
-    keep = set(_check_seeds(keep)) if len(keep) else set()
+    if isinstance(keep, (str, bytes)) or not hasattr(keep, "__len__"):
+        raise ValueError(f"keep must be a sequence of seeds (possibly empty), got {keep!r}")
+    keep = set(_check_seeds(keep, "keep")) if len(keep) else set()
+    if not keep <= set(seeds):
+        raise ValueError(f"keep must list seeds that are run, got {sorted(keep - set(seeds))} not in seeds {seeds}")
     out, kept = {name: {} for name in variants}, {}
     for s in seeds:
         options = {name: (v(s) if callable(v) else dict(v)) for name, v in variants.items()}
@@ -106,13 +112,32 @@ def evaluate_seeds(question: str, variants: dict, seeds, keep=(), **overrides):
     return out, kept
 
 
+def _check_evaluation(evaluation, metrics=()):
+    """An evaluation from evaluate_seeds ({variant: {seed: metrics or {"failed": …}}}); ``metrics`` must be
+    recorded by every successful run."""
+    if not isinstance(evaluation, dict) or not evaluation or \
+            not all(isinstance(per, dict) and all(isinstance(m, dict) for m in per.values())
+                    for per in evaluation.values()):
+        raise ValueError("evaluation must be the non-empty {variant: {seed: metrics}} dict of evaluate_seeds, got "
+                         f"{type(evaluation).__name__}")
+    for metric in metrics:
+        if any(metric not in m for per in evaluation.values() for m in per.values() if "failed" not in m):
+            raise ValueError(f"unknown metric {metric!r}; the runs recorded {sorted(_recorded(evaluation))}")
+
+
+def _recorded(evaluation):
+    return {k for per in evaluation.values() for m in per.values() if "failed" not in m for k in m}
+
+
 def failures(evaluation) -> dict:
     """{variant: [seeds whose run failed]}."""
+    _check_evaluation(evaluation)
     return {name: [s for s, m in per.items() if "failed" in m] for name, per in evaluation.items()}
 
 
 def seed_summary(evaluation, metric) -> dict:
     """{variant: (mean, sample std (0 for one run), min, max, number of successful runs)} of one metric."""
+    _check_evaluation(evaluation, [metric])
     out = {}
     for name, per in evaluation.items():
         vals = np.array([m[metric] for m in per.values() if "failed" not in m], dtype=float)
@@ -129,6 +154,10 @@ def format_seed_table(evaluation, columns) -> str:
 
     ``columns``: list of (metric, header, format spec), e.g. ``("pose_rms", "pose RMS (m)", ".3f")``.
     """
+    if not isinstance(columns, (list, tuple)) or not columns or \
+            not all(isinstance(c, (list, tuple)) and len(c) == 3 for c in columns):
+        raise ValueError(f"columns must be a non-empty list of (metric, header, format spec), got {columns!r}")
+    _check_evaluation(evaluation, [c[0] for c in columns])
     name_w = max(len(n) for n in evaluation) + 1
     cells = {}
     for metric, header, spec in columns:
@@ -144,6 +173,7 @@ def format_seed_table(evaluation, columns) -> str:
 
 def paired(evaluation, name, reference, metric) -> list:
     """[(value of ``name``, value of ``reference``)] of one metric, for each seed in which both runs succeeded."""
+    _check_evaluation(evaluation, [metric])
     for n in (name, reference):
         if n not in evaluation:
             raise ValueError(f"unknown variant {n!r}; the evaluation has {list(evaluation)}")
@@ -155,6 +185,7 @@ def paired(evaluation, name, reference, metric) -> list:
 def format_relative(evaluation, reference, name_width=24) -> str:
     """One line per variant comparing its seed means with ``reference``'s: edges removed, landmark edges and
     non-zeros of H as fractions of the reference's, and the median position variance as a factor."""
+    _check_evaluation(evaluation)
     if reference not in evaluation:
         raise ValueError(f"unknown reference variant {reference!r}; the evaluation has {list(evaluation)}")
     mean = {m: {n: v[0] for n, v in seed_summary(evaluation, m).items()}
@@ -175,6 +206,7 @@ def plot_seed_bars(axes, evaluation, metrics, colors=None) -> None:
     Variant names label the bars of the panels in the first column of the figure's grid.
     """
     axes = np.atleast_1d(axes).ravel()
+    _check_evaluation(evaluation, metrics)
     if len(axes) != len(metrics):
         raise ValueError(f"need one axis per metric: {len(metrics)} metrics, {len(axes)} axes")
     names = list(evaluation)
@@ -201,7 +233,8 @@ def spy_hessian(ax, H, starts, n_vehicle, title="") -> int:
     starts = np.asarray(starts)
     if H.ndim != 2 or H.shape[0] != H.shape[1]:
         raise ValueError(f"H must be square, got shape {H.shape}")
-    if not 0 <= n_vehicle <= len(starts):
+    if isinstance(n_vehicle, bool) or not isinstance(n_vehicle, numbers.Integral) or \
+            not 0 <= n_vehicle <= len(starts):
         raise ValueError(f"n_vehicle must be between 0 and {len(starts)}, got {n_vehicle}")
     ax.imshow(H != 0, cmap="Greys", vmin=0, vmax=1, interpolation="nearest")
     if 0 < n_vehicle < len(starts):

@@ -9,10 +9,12 @@ neither of them, so there is no import cycle).
 """
 from __future__ import annotations
 
+import os
 import pathlib
 
 import numpy as np
 
+from ..validation import boolean, integer
 from .config import SimulatorConfiguration
 from .scenarios import (LARGE_MAP_FIRST_WAYPOINTS, LARGE_MAP_RUN_LENGTH, LARGE_MAP_SEED, SCENARIO_DEFINITIONS,
                         SCENARIO_NAMES, Scenario, data_dir)
@@ -44,6 +46,9 @@ def generate_large_map(seed: int = LARGE_MAP_SEED, run_length: int = LARGE_MAP_R
     that the run has exactly ``run_length`` ticks (the coursework's 5667). The truth is deterministic, so so is
     N. Landmarks are drawn first, then the waypoints, from one Generator(seed).
     """
+    seed = integer(seed, "seed", minimum=0)
+    run_length = integer(run_length, "run_length", minimum=1)
+    max_tries = integer(max_tries, "max_tries", minimum=1)
     rng = np.random.default_rng(seed)
     landmarks = np.round(rng.uniform(0.0, 100.0, size=(2, 200)), 3)
     rest = np.round(rng.uniform(5.0, 95.0, size=(2, 16)), 2)
@@ -68,23 +73,38 @@ def generate_large_map(seed: int = LARGE_MAP_SEED, run_length: int = LARGE_MAP_R
 
 
 def _write(folder: pathlib.Path, landmarks: np.ndarray, waypoints: np.ndarray) -> None:
-    folder.mkdir(parents=True, exist_ok=True)
+    """Write one scenario's two files; each is written to a temporary file first and then renamed, so an
+    interrupted write never leaves a truncated file."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"cannot create the scenario folder {folder}: {exc}") from None
     ids = np.arange(1, landmarks.shape[1] + 1)
-    with open(folder / "landmarks.csv", "w", encoding="utf-8", newline="\n") as f:
-        f.write("id,x,y\n")
-        for i, (x, y) in zip(ids, landmarks.T):
-            f.write(f"{i},{x:g},{y:g}\n")
-    with open(folder / "waypoints.csv", "w", encoding="utf-8", newline="\n") as f:
-        f.write("x,y\n")
-        for x, y in waypoints.T:
-            f.write(f"{float(x)!r},{float(y)!r}\n")
+    lm_text = "id,x,y\n" + "".join(f"{i},{x:g},{y:g}\n" for i, (x, y) in zip(ids, landmarks.T))
+    wp_text = "x,y\n" + "".join(f"{float(x)!r},{float(y)!r}\n" for x, y in waypoints.T)
+    for file_name, text in (("landmarks.csv", lm_text), ("waypoints.csv", wp_text)):
+        target = folder / file_name
+        tmp = folder / f".{file_name}.tmp"
+        try:
+            with open(tmp, "w", encoding="utf-8", newline="\n") as f:
+                f.write(text)
+            os.replace(tmp, target)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
 
 
 def write_scenario_files(root: pathlib.Path | None = None, large_map: bool = True) -> None:
     """(Re)write every scenario's CSV files under ``root`` (default: ``data_dir()``).
 
     ``large_map=False`` skips the large map (its bisection runs the simulator a few dozen times)."""
-    root = data_dir() if root is None else pathlib.Path(root)
+    large_map = boolean(large_map, "large_map")
+    try:
+        root = data_dir() if root is None else pathlib.Path(root)
+    except TypeError:
+        raise ValueError(f"root must be a directory path or None, got {root!r}") from None
+    if root.exists() and not root.is_dir():
+        raise ValueError(f"root must be a directory, but {root} is a file")
     for name, (lm, wp) in SCENARIO_DEFINITIONS.items():
         _write(root / name, np.asarray(lm, dtype=float).T, np.asarray(wp, dtype=float).T)
     if large_map:

@@ -81,15 +81,34 @@ def data_dir() -> pathlib.Path:
 
 
 def load_scenario(name: str) -> Scenario:
-    """Read a scenario from ``data/drivebot/<name>/``; unknown names raise ValueError."""
-    if name not in SCENARIO_NAMES:
+    """Read a scenario from ``data/drivebot/<name>/``; unknown names and unreadable, truncated or malformed files
+    raise ValueError naming the file. A landmarks file may hold the header only (no landmarks)."""
+    if not isinstance(name, str) or name not in SCENARIO_NAMES:
         raise ValueError(f"unknown scenario {name!r}; known scenarios: {list(SCENARIO_NAMES)}")
     folder = data_dir() / name
-    try:
-        lm = np.loadtxt(folder / "landmarks.csv", delimiter=",", skiprows=1, ndmin=2)
-        wp = np.loadtxt(folder / "waypoints.csv", delimiter=",", skiprows=1, ndmin=2)
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"cannot read scenario {name!r} from {folder}: {exc}") from None
-    if lm.shape[1] != 3 or wp.shape[1] != 2:
-        raise ValueError(f"scenario {name!r}: landmarks.csv needs columns id,x,y and waypoints.csv x,y")
+    lm = _read_table(folder / "landmarks.csv", "id,x,y", name)
+    wp = _read_table(folder / "waypoints.csv", "x,y", name)
+    if np.any(lm[:, 0] != np.round(lm[:, 0])):
+        raise ValueError(f"scenario {name!r}: landmark ids in {folder / 'landmarks.csv'} must be integers")
     return Scenario(name, lm[:, 1:].T, lm[:, 0].astype(np.int64), wp.T)
+
+
+def _read_table(path: pathlib.Path, header: str, name: str) -> np.ndarray:
+    """The numeric rows (R, columns of ``header``) of a scenario CSV file that starts with ``header``."""
+    columns = header.count(",") + 1
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"cannot read scenario {name!r}: {path}: {exc}") from None
+    if not lines or lines[0].strip() != header:
+        raise ValueError(f"scenario {name!r}: {path} must start with the header line {header!r}")
+    body = [line for line in lines[1:] if line.strip()]
+    if not body:
+        return np.zeros((0, columns))
+    try:
+        table = np.loadtxt(body, delimiter=",", ndmin=2)
+    except ValueError as exc:
+        raise ValueError(f"scenario {name!r}: {path} is malformed: {exc}") from None
+    if table.shape[1] != columns:
+        raise ValueError(f"scenario {name!r}: {path} must have the {columns} columns {header}, got {table.shape[1]}")
+    return table

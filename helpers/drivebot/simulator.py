@@ -7,7 +7,9 @@ One ``step()`` moves tick k−1 → k:
 2. sensors for the new truth, each only if due (t ≥ its next time; then next += period + rand·dither):
        GPS      z = [x, y] + R(ψ)·lever_arm + L_G n                    (L L^T = R_GPS)
        laser    every landmark with ‖m − p‖ ≤ range (360°):  r = ‖m − p‖ + σ_r n₁,
-                β = wrap(atan2(m_y − y, m_x − x) − ψ + σ_β n₂)          (one event, 2×n data, 1-based ids)
+                β = wrap(atan2(m_y − y, m_x − x) − ψ + σ_β n₂)          (one event, 2×n data, 1-based ids);
+                a reading with r ≤ 0 (a landmark within a few σ_r of the vehicle) is not reported: a laser
+                returns no non-positive distance, and the range-bearing edge rejects one
        compass  z = wrap(ψ + Δψ_C + σ_C n)
 3. the waypoint controller (below) computes u_k;
 4. odometry  z = [s, 0, s·sin δ / B] + L_O n, stamped t_k (only while running).
@@ -84,14 +86,18 @@ class DriveBotSimulator:
         self._L_laser = np.linalg.cholesky(config.r_laser)
         self._sigma_compass = math.sqrt(float(config.r_compass[0, 0]))
         self._started = False
+        #: laser readings not reported because their noisy range came out ≤ 0 (module docstring)
+        self.dropped_laser_readings = 0
 
     # -- state -----------------------------------------------------------------------------------------
     @property
     def time(self) -> float:
+        self._check_started()
         return self._t
 
     @property
     def step_number(self) -> int:
+        self._check_started()
         return self._step
 
     def ground_truth(self) -> np.ndarray:
@@ -133,8 +139,11 @@ class DriveBotSimulator:
         self._batch = q.pop_all()
 
     def step(self) -> None:
-        """Advance one tick and generate that tick's events."""
+        """Advance one tick and generate that tick's events (RuntimeError once the route is finished)."""
         self._check_started()
+        if not self._carry_on:
+            raise RuntimeError("the route is finished (the vehicle passed its last waypoint, keep_running() is "
+                               "False): call start() to run it again")
         c = self.config
         # 1. truth with the control chosen at the previous tick
         dist = self._speed * c.dt
@@ -215,4 +224,10 @@ class DriveBotSimulator:
             return None
         noise = self._noise_scale * (self._L_laser @ self._rng.standard_normal((2, seen.size)))
         z = np.vstack([r[seen] + noise[0], wrap(np.arctan2(dy[seen], dx[seen]) - self._psi + noise[1])])
+        positive = z[0] > 0.0          # a laser reports no non-positive distance (module docstring)
+        if not positive.all():
+            self.dropped_laser_readings += int(np.count_nonzero(~positive))
+            z, seen = z[:, positive], seen[positive]
+            if seen.size == 0:
+                return None
         return Event(self._t, EventType.LANDMARK, z, c.r_laser, landmark_ids=self.scenario.landmark_ids[seen])

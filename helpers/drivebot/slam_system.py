@@ -8,6 +8,11 @@ Event processing (per batch, events in queue order):
    covariance (also before initialisation); COMPASS, GPS, LANDMARK are ignored until initialised;
 3. the batch counter (``step_number``) increases by one per batch.
 
+A batch is checked as a whole before any of it is applied (``_check_batch``), so a bad batch raises ValueError
+and leaves the system as it was: events must be ``Event`` objects in time order (an event more than 1 ms before
+the current time is an error), no second INITIAL_CONDITION, no event of a disabled sensor, an odometry event
+before the first prediction, valid covariances.
+
 So every tick creates exactly one vehicle vertex, predicted with the *previously stored* odometry over
 [t_{k−1}, t_k]; the compass, laser and GPS events of that tick attach to it.
 
@@ -21,6 +26,11 @@ inf: never; the runner then optimises once at the end). ``optimize(n)`` first ru
 (if any) and removes prediction edges when requested (all, or all but the first), then builds the structure
 and runs n LM iterations; it returns χ².
 
+Options are validated on construction *and* on assignment (``system.optimization_period = 0`` raises); the
+configuration cannot be replaced after construction. ``remove_prediction_edges`` needs an observation sensor
+(compass, GPS or laser): with odometry only, removing the prediction edges leaves no edge to optimise. Events
+are merged when less than 1 ms apart, so ``config.dt`` must be at least 2 ms (one vehicle vertex per tick).
+
 Removed vertices: ``remove_edge`` deletes every vertex left without edges (coursework semantics). Such
 vehicle vertices keep their last estimate but have no covariance; the estimate functions report them
 explicitly through an ``in_graph`` mask (state and covariance NaN in the histories), never as P = 0 spikes.
@@ -28,7 +38,6 @@ explicitly through an ``in_graph`` mask (state and covariance NaN in the histori
 from __future__ import annotations
 
 import math
-import numbers
 from collections import Counter
 from typing import Callable
 
@@ -39,18 +48,9 @@ from ..graph import (BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBea
 from .config import SimulatorConfiguration
 from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex, predict
 from .events import Event, EventType
+from .options import _MERGE_TIME, _OPTION_CHECKS, _SENSOR_FLAGS, MIN_TICK, check_period
 
-__all__ = ["DriveBotSLAMSystem", "check_period"]
-
-def check_period(period, name="optimization_period"):
-    """None / inf → None (optimise only at the end); a positive integer → int; anything else ValueError."""
-    if period is None:
-        return None
-    if isinstance(period, float) and math.isinf(period) and period > 0:
-        return None
-    if isinstance(period, bool) or not isinstance(period, numbers.Integral) or period <= 0:
-        raise ValueError(f"{name} must be a positive integer number of steps, None or inf, got {period!r}")
-    return int(period)
+__all__ = ["DriveBotSLAMSystem", "check_period", "MIN_TICK"]
 
 
 class DriveBotSLAMSystem:
@@ -74,26 +74,13 @@ class DriveBotSLAMSystem:
                  keep_first_prediction_edge: bool = False,
                  pre_optimization_hook: Callable[["DriveBotSLAMSystem"], None] | None = None,
                  optimization_algorithm: str = "lm"):
-        if config is None:
-            config = SimulatorConfiguration()
-        if not isinstance(config, SimulatorConfiguration):
-            raise ValueError(f"config must be a SimulatorConfiguration, got {type(config).__name__}")
-        if optimization_algorithm not in ("lm", "gn", "lm-gtsam"):
-            raise ValueError(f"optimization_algorithm must be 'lm', 'gn' or 'lm-gtsam', got {optimization_algorithm!r}")
-        if compass_edge not in ("fixed", "buggy"):
-            raise ValueError(f"compass_edge must be 'fixed' or 'buggy', got {compass_edge!r}")
-        for name, flag in (("remove_prediction_edges", remove_prediction_edges),
-                           ("keep_first_prediction_edge", keep_first_prediction_edge)):
-            if not isinstance(flag, (bool, np.bool_)):
-                raise ValueError(f"{name} must be True or False, got {flag!r}")
-        if pre_optimization_hook is not None and not callable(pre_optimization_hook):
-            raise ValueError(f"pre_optimization_hook must be callable or None, got {pre_optimization_hook!r}")
-        self.config = config
+        # every option below is validated by __setattr__ (_OPTION_CHECKS), here and on later assignment
+        self.config = SimulatorConfiguration() if config is None else config
         self.optimization_period = check_period(optimization_period)
         self.compass_edge = compass_edge
         self._compass_class = BuggyCompassEdge if compass_edge == "buggy" else EdgeHeadingPrior
-        self.remove_prediction_edges = bool(remove_prediction_edges)
-        self.keep_first_prediction_edge = bool(keep_first_prediction_edge)
+        self.remove_prediction_edges = remove_prediction_edges
+        self.keep_first_prediction_edge = keep_first_prediction_edge
         self.pre_optimization_hook = pre_optimization_hook
         self.optimization_algorithm = optimization_algorithm
         self.graph = SparseOptimizer()
@@ -110,12 +97,19 @@ class DriveBotSLAMSystem:
         self._removal_done_upto = 0  # process_model_edges[:k] have already been through removal
         self._built = False          # structure current for the graph as it is now
 
+    def __setattr__(self, name, value):
+        check = _OPTION_CHECKS.get(name)
+        if check is not None:
+            value = check(self, value)
+        object.__setattr__(self, name, value)
+
     # ================================================================================= event processing
     def process_events(self, events) -> None:
-        """Process one batch (one simulator tick) of events in order; then step_number += 1."""
+        """Process one batch (one simulator tick) of events in order; then step_number += 1.
+
+        The batch is checked first (module docstring): a bad batch raises ValueError and changes nothing."""
+        events = self._check_batch(events)
         for event in events:
-            if not isinstance(event, Event):
-                raise ValueError(f"events must contain Event objects, got {type(event).__name__}")
             if self.initialised:
                 dt = event.time - self.current_time
                 if abs(dt) >= 1e-3:
@@ -140,6 +134,50 @@ class DriveBotSLAMSystem:
                 if self.initialised:
                     self._handle_landmarks(event)
         self.step_number += 1
+
+    def _check_batch(self, events) -> list:
+        """The batch as a list, after checking everything that could fail half-way through processing it."""
+        if isinstance(events, (Event, str, bytes, dict)) or not hasattr(events, "__iter__"):
+            raise ValueError(f"events must be a list of Event objects (one tick's batch), got {type(events).__name__}")
+        events = list(events)
+        initialised, now, have_u = self.initialised, self.current_time, self._u_info is not None
+        for i, event in enumerate(events):
+            if not isinstance(event, Event):
+                raise ValueError(f"events must contain Event objects, got {type(event).__name__} at position {i}")
+            t = event.type
+            if initialised:
+                if event.time - now <= -_MERGE_TIME:
+                    raise ValueError(f"events must come in time order: event {i} ({t.name}) at t = {event.time:.4f} "
+                                     f"is earlier than the system's current time {now:.4f}")
+                if abs(event.time - now) >= _MERGE_TIME:
+                    if not have_u:
+                        raise ValueError("prediction needs an odometry event first (none received)")
+                    now = event.time
+            if t is EventType.INITIAL_CONDITION:
+                if initialised:
+                    raise ValueError("received a second INITIAL_CONDITION event")
+                if np.linalg.det(event.covariance) >= 1e-6:
+                    information_from_covariance(event.covariance, "initial covariance")
+                initialised, now = True, event.time
+            elif t is EventType.VEHICLE_ODOMETRY:
+                self._information(event.covariance)
+                have_u = True
+            elif t in _SENSOR_FLAGS:
+                self._check_enabled(_SENSOR_FLAGS[t], event)
+                if initialised:
+                    self._information(event.covariance)
+                    self._check_measurements(event)
+        return events
+
+    def _check_measurements(self, event):
+        """The edge class's own check of the event's measurements (the graph's ``check_measurements`` hook,
+        e.g. a negative laser range), run here so that it fails before any of the batch is applied."""
+        cls = {EventType.COMPASS: self._compass_class, EventType.GPS: EdgePositionPrior,
+               EventType.LANDMARK: EdgeRangeBearing}[event.type]
+        check = getattr(cls, "check_measurements", None)   # a hook of newer helpers.graph versions
+        if check is not None:
+            z = event.data.T if event.type is EventType.LANDMARK else event.data[None, :]
+            check(z, f"{event.type.name} event at t = {event.time:.3f}: data")
 
     @staticmethod
     def _information(cov):
@@ -363,3 +401,4 @@ class DriveBotSLAMSystem:
             "free_state_dimensions": free_dims,
             "dof": meas - free_dims,
         }
+

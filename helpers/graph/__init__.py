@@ -115,12 +115,17 @@ inverse. Modules by responsibility: ``storage`` / ``elements`` (growable arrays,
 
 Per-object API (from ``BaseEdge``): ``set_vertex(k, v)``, ``vertex(k)``, ``vertices()``, ``set_measurement``,
 ``set_information`` (must be symmetric positive definite), ``measurement``, ``information``, ``error()``,
-``jacobians()``, ``chi2()``; an edge may be edited while in a graph (values are written through to the store).
+``jacobians()``, ``chi2()``; an edge may be edited while in a graph, also after ``initialize_optimization`` (values
+are written through to the store and re-gathered before the next linearisation). ``check_measurements(z, name)``
+(classmethod hook, default: accept) lets an edge class reject physically impossible measurements in
+``set_measurement`` and ``add_edges`` alike.
 
 The standard 2D set (``edges2d``): EdgeSE2 (between, GTSAM's BetweenFactor error), EdgeSE2Prior, EdgePositionPrior
 (GPS with ``lever_arm``), EdgeHeadingPrior (compass with ``offset``, wrapped), EdgeRangeBearing (z = (range,
 bearing)), EdgePointPrior, EdgeSE2PointXY (g2o's EDGE_SE2_XY). Angles: ``wrap_angle`` (and the simulator's
-``wrap_angle_mod``) in ``angles``. Errors: ``GraphError`` (a ValueError) and ``GaugeFreedomError``.
+``wrap_angle_mod``) in ``angles``. Errors: ``GraphError`` (a ValueError), ``GaugeFreedomError`` and
+``NonFiniteError`` (NaN/inf χ², error or Jacobian, naming the edges). ``optimize`` is transactional: on any exception
+or interrupt the vertices hold the last accepted state.
 """
 
 from . import kernels
@@ -128,7 +133,7 @@ from .angles import wrap_angle, wrap_angle_mod
 from .edge import BaseEdge, batch_matrix, check_information, information_from_covariance, numeric_jacobians
 from .edges2d import (EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
                       EdgeSE2PointXY, EdgeSE2Prior)
-from .errors import GaugeFreedomError, GraphError
+from .errors import GaugeFreedomError, GraphError, NonFiniteError
 from .algorithms import GaussNewtonParams, GTSAMLevenbergMarquardtParams, LevenbergMarquardtParams
 from .optimizer import SparseOptimizer
 from .vertex import BaseVertex, VertexPointXY, VertexSE2, VertexSE2Exp
@@ -136,4 +141,4 @@ from .vertex import BaseVertex, VertexPointXY, VertexSE2, VertexSE2Exp
 __all__ = ["GaussNewtonParams", "LevenbergMarquardtParams", "GTSAMLevenbergMarquardtParams", "wrap_angle", "wrap_angle_mod", "BaseVertex", "VertexSE2", "VertexSE2Exp", "VertexPointXY", "BaseEdge",
            "check_information", "information_from_covariance", "batch_matrix", "numeric_jacobians", "EdgeSE2", "EdgeSE2Prior", "EdgePositionPrior",
            "EdgeHeadingPrior", "EdgeRangeBearing", "EdgePointPrior", "EdgeSE2PointXY", "SparseOptimizer", "GraphError",
-           "GaugeFreedomError"]
+           "GaugeFreedomError", "NonFiniteError"]

@@ -7,6 +7,12 @@ vertices. All three try steps through ONE mechanism, ``Trial``: it holds the acc
 relinearises), ``reject()`` goes back to X, ``finish()`` leaves X in the vertices. ``record(k, chi2, mu,
 rejected)`` is called once per outer iteration.
 
+Transactions (g2o's push/pop). ``Algorithm.run`` — shared by the three — runs an algorithm's ``iterate`` inside
+``try/except BaseException``: whatever escapes (a NonFiniteError, an exception in an edge model or a vertex's ⊞,
+KeyboardInterrupt) first puts the last accepted X back into the vertices, then propagates. A non-finite χ², H or b
+at the initial estimates, at a tried step or at an accepted one raises NonFiniteError (from ``FreeState``) naming
+the edges.
+
 Levenberg–Marquardt exactly as the coursework (Lourakis, SBA Fig. 2), τ = 1e−3, ε1 = ε2 = ε3 = 1e−12, ε4 = 0:
     R0 = χ²(X), (H, b) at X; stop if ‖b‖∞ < ε1;  μ = τ·max diag H, ν = 2
     per outer iteration, until a step is accepted (or stop):
@@ -27,12 +33,12 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..validation import positive_number
+from ..validation import finite_number, positive_number
 from .errors import GraphError
 from .linearise import LinearSystem
 
-__all__ = ["GaussNewtonParams", "LevenbergMarquardtParams", "GTSAMLevenbergMarquardtParams", "GaussNewton",
-           "LevenbergMarquardt", "GTSAMLevenbergMarquardt", "Trial", "ALGORITHMS", "make_algorithm"]
+__all__ = ["GaussNewtonParams", "LevenbergMarquardtParams", "GTSAMLevenbergMarquardtParams", "Algorithm",
+           "GaussNewton", "LevenbergMarquardt", "GTSAMLevenbergMarquardt", "Trial", "ALGORITHMS", "make_algorithm"]
 
 
 def _dot(a, b):
@@ -61,6 +67,9 @@ class GaussNewtonParams:
 
     def __post_init__(self):
         _check_fields(self, positive=("min_step_fraction",))
+        if self.min_step_fraction > 1:
+            raise ValueError(f"GaussNewtonParams.min_step_fraction must be ≤ 1 (the full step is α = 1), "
+                             f"got {self.min_step_fraction!r}")
 
 
 @dataclass(frozen=True)
@@ -92,6 +101,9 @@ class GTSAMLevenbergMarquardtParams:
         _check_fields(self, positive=("initial_lambda", "lambda_factor", "max_lambda"))
         if self.lambda_factor <= 1:
             raise ValueError(f"GTSAMLevenbergMarquardtParams.lambda_factor must be > 1, got {self.lambda_factor!r}")
+        if self.max_lambda <= self.initial_lambda:
+            raise ValueError(f"GTSAMLevenbergMarquardtParams.max_lambda must be > initial_lambda "
+                             f"({self.initial_lambda!r}), got {self.max_lambda!r}")
 
 
 class Trial:
@@ -99,9 +111,9 @@ class Trial:
 
     def __init__(self, state):
         self.state = state
-        self.system = state.linearise()       # H, b at the accepted state
-        self.chi2 = self.system.chi2          # χ² at the accepted state
         self.x = state.get()                  # the accepted state X
+        self.system = state.linearise("optimize: at the initial estimates")  # H, b at the accepted state
+        self.chi2 = self.system.chi2          # χ² at the accepted state
 
     @property
     def gradient(self):
@@ -113,13 +125,13 @@ class Trial:
     def try_step(self, dx):
         """Move to X ⊞ (−dx); returns χ² there (the accepted state is kept until ``accept``)."""
         self.state.retract(dx)
-        return self.state.chi2()
+        return self.state.chi2("optimize: at a trial step")
 
     def accept(self, chi2):
-        """Keep the tried state (χ² = ``chi2``) and relinearise there."""
-        self.x = self.state.get()
-        self.chi2 = chi2
-        self.system = self.state.linearise()
+        """Keep the tried state (χ² = ``chi2``) and relinearise there (X stays the old one if that raises)."""
+        x = self.state.get()
+        system = self.state.linearise("optimize: at an accepted step")
+        self.x, self.chi2, self.system = x, chi2, system
 
     def reject(self):
         """Go back to the accepted state."""
@@ -131,15 +143,37 @@ class Trial:
         return LinearSystem(self.system.hessian_data, self.system.gradient, self.chi2)
 
 
-class GaussNewton:
+class Algorithm:
+    """Base of the three algorithms: ``run`` is the transaction around a subclass's ``iterate``."""
+
+    name = None
+
+    def run(self, state, max_iterations, record):
+        """Iterate from the vertices' state; returns the (H, b, χ²) of the accepted state left in the vertices.
+
+        Any exception or interrupt (BaseException) restores the last accepted state before it propagates."""
+        trial = None
+        start = state.get()
+        try:
+            trial = Trial(state)
+            self.iterate(trial, max_iterations, record)
+            return trial.finish()
+        except BaseException:
+            state.set(start if trial is None else trial.x)
+            raise
+
+    def iterate(self, trial, max_iterations, record):
+        raise NotImplementedError
+
+
+class GaussNewton(Algorithm):
     name = "gn"
 
     def __init__(self, params=None):
         self.params = GaussNewtonParams() if params is None else params
 
-    def run(self, state, max_iterations, record):
+    def iterate(self, trial, max_iterations, record):
         p = self.params
-        trial = Trial(state)
         for k in range(1, max_iterations + 1):
             if np.max(np.abs(trial.gradient)) < p.gradient_tolerance:
                 break
@@ -163,23 +197,19 @@ class GaussNewton:
             record(k, trial.chi2, 0.0, 0)
             if decrease < p.tolerance:
                 break
-        return trial.finish()
 
 
-class LevenbergMarquardt:
+class LevenbergMarquardt(Algorithm):
     name = "lm"
 
     def __init__(self, params=None):
         self.params = LevenbergMarquardtParams() if params is None else params
 
-    def run(self, state, max_iterations, record):
+    def iterate(self, trial, max_iterations, record):
         p = self.params
-        trial = Trial(state)
-        if not np.isfinite(trial.chi2):
-            raise GraphError("optimize: χ² is not finite at the initial estimates")
         if np.max(np.abs(trial.gradient)) < p.gradient_tolerance:
-            return trial.finish()
-        mu = p.tau * float(np.max(trial.system.hessian_data[state.pattern.diag_pos]))
+            return
+        mu = p.tau * float(np.max(trial.system.hessian_data[trial.state.pattern.diag_pos]))
         nu = 2.0
         k = 1
         stop = False
@@ -189,7 +219,6 @@ class LevenbergMarquardt:
             if np.sqrt(trial.chi2) < p.chi2_tolerance:
                 stop = True
             k += 1
-        return trial.finish()
 
     def _iteration(self, trial, mu, nu):
         """Damped steps until one is accepted (or a stop test fires): returns (μ, ν, rejected steps, stop)."""
@@ -220,15 +249,14 @@ class LevenbergMarquardt:
                 return mu, nu, rejected, True
 
 
-class GTSAMLevenbergMarquardt:
+class GTSAMLevenbergMarquardt(Algorithm):
     name = "lm-gtsam"
 
     def __init__(self, params=None):
         self.params = GTSAMLevenbergMarquardtParams() if params is None else params
 
-    def run(self, state, max_iterations, record):
+    def iterate(self, trial, max_iterations, record):
         p = self.params
-        trial = Trial(state)
         lam = p.initial_lambda
         for k in range(1, max_iterations + 1):
             r1, lam, rejected = self._damped_step(trial, lam)
@@ -241,7 +269,6 @@ class GTSAMLevenbergMarquardt:
             record(k, trial.chi2, lam, rejected)
             if decrease < p.relative_tolerance * trial.chi2 or 0.5 * decrease < p.absolute_tolerance:
                 break
-        return trial.finish()
 
     def _damped_step(self, trial, lam):
         """Raise λ until a step passes the fidelity test: returns (χ² after it, λ, rejected) — the state is then
@@ -267,17 +294,31 @@ ALGORITHMS = {"lm": (LevenbergMarquardt, LevenbergMarquardtParams),
               "lm-gtsam": (GTSAMLevenbergMarquardt, GTSAMLevenbergMarquardtParams)}
 
 
-def make_algorithm(algorithm, tau=LevenbergMarquardtParams.tau, gn_tolerance=GaussNewtonParams.tolerance):
+def make_algorithm(algorithm, tau=None, gn_tolerance=None):
     """The algorithm object for ``optimize``: ``algorithm`` is a name ("lm", "gn", "lm-gtsam"; ``tau`` and
-    ``gn_tolerance`` then set LM's τ and Gauss–Newton's tolerance) or a parameters object
-    (``LevenbergMarquardtParams``, ``GaussNewtonParams``, ``GTSAMLevenbergMarquardtParams``)."""
+    ``gn_tolerance`` then set LM's τ and Gauss–Newton's tolerance, None meaning the default) or a parameters object
+    (``LevenbergMarquardtParams``, ``GaussNewtonParams``, ``GTSAMLevenbergMarquardtParams``), which sets every
+    parameter. ``tau`` / ``gn_tolerance`` given where they do not apply raise ValueError (never silently ignored)."""
+    name = algorithm if isinstance(algorithm, str) else None
+    if tau is not None:
+        tau = positive_number(tau, "tau")
+        if name != "lm":
+            raise ValueError(f"tau sets the initial damping of algorithm='lm' only (got algorithm={algorithm!r}); "
+                             "set it in the parameters object instead")
+    if gn_tolerance is not None:
+        if finite_number(gn_tolerance, "gn_tolerance") < 0:
+            raise ValueError(f"gn_tolerance must be a finite number ≥ 0, got {gn_tolerance!r}")
+        if name != "gn":
+            raise ValueError(f"gn_tolerance applies to algorithm='gn' only (got algorithm={algorithm!r}); "
+                             "set it in the parameters object instead")
     for cls, params_cls in ALGORITHMS.values():
         if isinstance(algorithm, params_cls):
             return cls(algorithm)
-    if algorithm == "lm":
-        return LevenbergMarquardt(LevenbergMarquardtParams(tau=tau))
-    if algorithm == "gn":
-        return GaussNewton(GaussNewtonParams(tolerance=float(gn_tolerance)))
-    if algorithm == "lm-gtsam":
+    if name == "lm":
+        return LevenbergMarquardt(LevenbergMarquardtParams(tau=LevenbergMarquardtParams.tau if tau is None else tau))
+    if name == "gn":
+        tolerance = GaussNewtonParams.tolerance if gn_tolerance is None else float(gn_tolerance)
+        return GaussNewton(GaussNewtonParams(tolerance=tolerance))
+    if name == "lm-gtsam":
         return GTSAMLevenbergMarquardt()
     raise ValueError(f"algorithm must be 'lm', 'gn' or 'lm-gtsam' or a parameters object, got {algorithm!r}")

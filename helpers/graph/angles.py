@@ -17,9 +17,16 @@ __all__ = ["wrap_angle", "wrap_angle_mod"]
 _TWO_PI = 2.0 * np.pi
 
 
+def _angles(theta):
+    try:
+        return np.asarray(theta, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"theta must be a number or an array of numbers (radians), got {theta!r}") from None
+
+
 def wrap_angle(theta):
-    """Wrap angles (scalar or array, radians) into [−π, π). Returns a float or a new array."""
-    arr = np.asarray(theta, dtype=float)
+    """Wrap angles (scalar or array, radians) into [−π, π). Returns a float or a new array (NaN stays NaN)."""
+    arr = _angles(theta)
     out = arr - _TWO_PI * np.floor((arr + np.pi) / _TWO_PI)
     # floating round-off can land exactly on +π; fold it to −π so the interval stays half-open
     out = np.where(out >= np.pi, out - _TWO_PI, out)
@@ -33,4 +40,4 @@ def wrap_angle_mod(theta):
     anything else an array."""
     if isinstance(theta, float):
         return (theta + math.pi) % _TWO_PI - math.pi
-    return (np.asarray(theta, dtype=float) + np.pi) % _TWO_PI - np.pi
+    return (_angles(theta) + np.pi) % _TWO_PI - np.pi

@@ -27,10 +27,11 @@ numpy model as ``evaluate_reference`` (same signature and results; the tests com
 import numpy as np
 
 from .angles import wrap_angle
-from .errors import GraphError
+from .errors import GraphError, NonFiniteError
 from .vertex import BaseVertex, _as_vector
 
-__all__ = ["BaseEdge", "check_information", "information_from_covariance", "batch_matrix", "numeric_jacobians"]
+__all__ = ["BaseEdge", "check_information", "information_from_covariance", "batch_matrix", "numeric_jacobians",
+           "check_model_output", "edge_label"]
 
 
 #: validated information matrices (and inverted covariances), keyed by kind and value; bounded
@@ -103,7 +104,10 @@ def information_from_covariance(cov, name="covariance"):
 
 def check_information_batch(info, m, name="information"):
     """Vectorised check of (E, m, m) information matrices. Returns (Ω, W) stacks with Ω_e = W_eᵀ W_e."""
-    arr = np.asarray(info, dtype=float)
+    try:
+        arr = np.asarray(info, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numeric (E, {m}, {m}) matrices, got {type(info).__name__}") from None
     if arr.ndim != 3 or arr.shape[1:] != (m, m):
         raise ValueError(f"{name} must have shape (E, {m}, {m}), got {arr.shape}")
     if not np.isfinite(arr).all():
@@ -129,13 +133,56 @@ def batch_matrix(rows):
 
     ``batch_matrix([[c, -s], [s, c]])`` stacks the rotations R(ψ) of E angles (c, s of shape (E,)).
     """
-    if not rows or any(len(row) != len(rows[0]) for row in rows) or len(rows[0]) == 0:
+    if not isinstance(rows, (list, tuple)) or not rows or not all(isinstance(row, (list, tuple)) for row in rows) \
+            or any(len(row) != len(rows[0]) for row in rows) or len(rows[0]) == 0:
         raise ValueError(f"rows must be a non-empty list of equally long rows, got {rows!r}")
     out = np.empty(np.broadcast_shapes(*(np.shape(v) for row in rows for v in row)) + (len(rows), len(rows[0])))
     for i, row in enumerate(rows):
         for j, value in enumerate(row):
-            out[..., i, j] = value
+            try:
+                out[..., i, j] = value
+            except (TypeError, ValueError):
+                raise ValueError(f"rows[{i}][{j}] must be a number or an (E,) numeric array, got {value!r}") from None
     return out
+
+
+def edge_label(edge):
+    """``EdgeRangeBearing(VertexSE2 4, VertexPointXY 7)``: the edge's class and its vertices, for messages."""
+    names = ", ".join("unset" if v is None else f"{type(v).__name__} {v.id}" for v in edge._vertices)
+    return f"{type(edge).__name__}({names})"
+
+
+def check_model_output(cls, e, jac, count, jacobians):
+    """Raise GraphError unless ``cls.evaluate`` returned e of shape (count, m) and, when ``jacobians``, one
+    Jacobian (count, m, d_k) per slot (shapes only: O(1))."""
+    m = int(cls.measurement_dimension)
+    if np.shape(e) != (count, m):
+        raise GraphError(f"{cls.__name__}.evaluate returned an error of shape {np.shape(e)} for {count} edge(s); "
+                         f"expected ({count}, {m}) (one row per edge)")
+    if not jacobians:
+        return
+    dims = [int(t.dimension) for t in cls.vertex_types]
+    if jac is None or len(jac) != len(dims):
+        got = "None" if jac is None else f"{len(jac)} Jacobian(s)"
+        raise GraphError(f"{cls.__name__}.evaluate(jacobians=True) returned {got}; expected a list of {len(dims)} "
+                         f"(one per vertex slot)")
+    for k, (j, d) in enumerate(zip(jac, dims)):
+        if np.shape(j) != (count, m, d):
+            raise GraphError(f"{cls.__name__}.evaluate returned a Jacobian of shape {np.shape(j)} for slot {k}; "
+                             f"expected ({count}, {m}, {d})")
+
+
+def _check_edge_class(cls):
+    """Class-level declarations of an edge class (TypeError naming the attribute); empty ones mark an abstract class."""
+    types = cls.vertex_types
+    if not isinstance(types, (tuple, list)) or not all(isinstance(t, type) and issubclass(t, BaseVertex)
+                                                        for t in types):
+        raise TypeError(f"{cls.__name__}.vertex_types must be a tuple of vertex classes, got {types!r}")
+    m = cls.measurement_dimension
+    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 0 or (types and m == 0):
+        raise TypeError(f"{cls.__name__}.measurement_dimension must be a positive int, got {m!r}")
+    if not isinstance(cls.parameters, dict):
+        raise TypeError(f"{cls.__name__}.parameters must be a dict name -> default value, got {cls.parameters!r}")
 
 
 def numeric_jacobians(cls, states, z, params, step=None):
@@ -194,11 +241,19 @@ class BaseEdge:
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
+        _check_edge_class(cls)
         defaults = {}
         for name, default in dict(cls.parameters).items():
-            defaults[name] = np.array(default, dtype=float)
-            if not hasattr(BaseEdge, name):
-                setattr(cls, name, _ParameterProperty(name))
+            if not isinstance(name, str) or not name.isidentifier() or hasattr(BaseEdge, name):
+                raise TypeError(f"{cls.__name__}.parameters: {name!r} cannot be a parameter name (an identifier "
+                                "that is not a BaseEdge attribute)")
+            try:
+                defaults[name] = np.array(default, dtype=float)
+            except (TypeError, ValueError):
+                raise TypeError(f"{cls.__name__}.parameters[{name!r}] must be numeric, got {default!r}") from None
+            if not np.all(np.isfinite(defaults[name])):
+                raise TypeError(f"{cls.__name__}.parameters[{name!r}] must be finite, got {default!r}")
+            setattr(cls, name, _ParameterProperty(name))
         cls._param_defaults = defaults
 
     def __init__(self, vertices=None, measurement=None, information=None, **params):
@@ -215,8 +270,11 @@ class BaseEdge:
         for name, value in params.items():
             self.set_parameter(name, value)
         if vertices is not None:
-            if len(vertices) != len(cls.vertex_types):
-                raise ValueError(f"{cls.__name__} takes {len(cls.vertex_types)} vertices, got {len(vertices)}")
+            if isinstance(vertices, BaseVertex) or not hasattr(vertices, "__len__") \
+                    or len(vertices) != len(cls.vertex_types):
+                got = f"{len(vertices)}" if hasattr(vertices, "__len__") else repr(vertices)
+                raise ValueError(f"{cls.__name__}: vertices must be a list of {len(cls.vertex_types)} vertices, "
+                                 f"got {got}")
             for k, v in enumerate(vertices):
                 self.set_vertex(k, v)
         if measurement is not None:
@@ -247,7 +305,7 @@ class BaseEdge:
     # ----- vertices ------------------------------------------------------------------------------------
     def set_vertex(self, k, vertex):
         cls = type(self)
-        if not isinstance(k, (int, np.integer)) or not 0 <= k < len(cls.vertex_types):
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k < len(cls.vertex_types):
             raise ValueError(f"{cls.__name__}.set_vertex: slot k must be in 0..{len(cls.vertex_types) - 1}, got {k!r}")
         if vertex is not None:
             if not isinstance(vertex, BaseVertex):
@@ -278,9 +336,20 @@ class BaseEdge:
     def measurement(self):
         return self._z.copy()
 
+    @classmethod
+    def check_measurements(cls, z, name):
+        """Hook: raise ValueError (naming ``name``) if a row of ``z`` is physically impossible for this class.
+
+        ``z`` is an (E, m) float array already checked for shape and finiteness. Called by ``set_measurement``
+        (with a (1, m) view, before anything is stored) and by ``SparseOptimizer.add_edges``; the default accepts
+        every finite value."""
+
     def set_measurement(self, z):
         cls = type(self)
-        self._z = _as_vector(z, cls.measurement_dimension, f"{cls.__name__}.set_measurement(z)")
+        name = f"{cls.__name__}.set_measurement(z)"
+        z = _as_vector(z, cls.measurement_dimension, name)
+        cls.check_measurements(z[None, :], name)
+        self._z = z
         if self._graph is not None:
             self._graph._edge_store_row(self)
 
@@ -329,8 +398,14 @@ class BaseEdge:
         return [v.estimate[None, :] for v in self._vertices]
 
     def _eval(self, jacobians):
+        cls = type(self)
         params = {k: v[None, ...] for k, v in self._params.items()}
-        return type(self).evaluate(self._states(), self._z[None, :], params, jacobians=jacobians)
+        e, jac = cls.evaluate(self._states(), self._z[None, :], params, jacobians=jacobians)
+        check_model_output(cls, e, jac, 1, jacobians)
+        if not np.all(np.isfinite(e)) or (jacobians and not all(np.all(np.isfinite(j)) for j in jac)):
+            raise NonFiniteError(f"{edge_label(self)}: the error or a Jacobian is not finite (NaN or inf) at the "
+                                 "current estimates (a degenerate configuration or an overflowing estimate?)", [self])
+        return e, jac
 
     def error(self):
         """e = h(x) − z for the current vertex estimates, shape (m,)."""
@@ -345,7 +420,10 @@ class BaseEdge:
     def chi2(self):
         """eᵀ Ω e."""
         e = self.error()
-        return float(e @ self._info @ e)
+        value = float(e @ self._info @ e)
+        if not np.isfinite(value):
+            raise NonFiniteError(f"{edge_label(self)}: χ² = eᵀΩe overflows (e = {e}) at the current estimates", [self])
+        return value
 
     def __repr__(self):
         ids = [None if v is None else v.id for v in self._vertices]

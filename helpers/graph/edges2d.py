@@ -14,6 +14,10 @@ EdgeRangeBearing   pose → point, z = (range, bearing); d = m − t, r = ‖d�
 EdgePointPrior     e = m − z, J = I₂.
 EdgeSE2PointXY     pose → point in the pose's frame (g2o EDGE_SE2_XY): q = R(ψ)ᵀ(m − t), e = q − z,
                    J_x = [−R(ψ)ᵀ | [q_y, −q_x]ᵀ],  J_m = R(ψ)ᵀ.
+
+Measurement checks (the ``check_measurements`` hook of ``BaseEdge``, after the shape and finiteness checks):
+only ``EdgeRangeBearing`` restricts its measurement (range ≥ 0). Every other measurement here is a position,
+an offset or an angle, for which any finite value is physical (angles are wrapped in the error).
 """
 
 import numpy as np
@@ -189,6 +193,21 @@ class EdgeRangeBearing(BaseEdge):
         jx[:, :, :2] = -jm
         jx[:, 1, 2] = -1.0
         return e, [jx, jm]
+
+    @classmethod
+    def check_measurements(cls, z, name):
+        """A range is a distance: z[:, 0] ≥ 0, else ValueError naming ``name`` (``BaseEdge`` hook, called by
+        ``set_measurement`` and ``add_edges`` with z (E, 2) already shape-checked and finite).
+
+        0 is allowed: it is the edge of the physical domain, a sensor can report it (rounding), and the error
+        r − z_r is defined there; only an *estimate* with the point on the pose makes the Jacobian singular.
+        """
+        z = np.asarray(z, dtype=float)
+        bad = ~(z[:, 0] >= 0.0)  # also catches NaN
+        if bad.any():
+            t = int(np.argmax(bad))
+            row = f" (row {t})" if len(z) > 1 else ""
+            raise ValueError(f"{name}: the range must be >= 0 (a distance), got {float(z[t, 0])!r}{row}")
 
 
 class EdgePointPrior(BaseEdge):

@@ -5,11 +5,15 @@ An element that joins a graph keeps a reference to it (``_graph``) and its place
 handle ``_h``, an edge its row ``_row``). From then on the graph's storage is the one copy of its values: the
 element's getters and setters call the graph back through the hooks at the end of ``GraphElements``. Every change
 of the structure (elements, connections, fixed flags) marks the built structure stale; every change of a value
-calls ``_values_changed`` (the optimiser drops its cached H and b there).
+calls ``_values_changed`` (the optimiser drops its cached H and b there), and an edited edge's class joins
+``_dirty_edge_classes`` (the optimiser re-gathers those classes' values before it next linearises).
+
+Every method validates its arguments before it changes anything, so a rejected call leaves the graph as it was.
 """
 
 import numpy as np
 
+from ..validation import integer
 from .edge import BaseEdge, check_information_batch
 from .errors import GraphError
 from .storage import EdgeStore, VertexStore
@@ -33,6 +37,7 @@ class GraphElements:
         self._n_vertices = 0
         self._structure_stale = True
         self._hessian_index = np.zeros(0, dtype=np.int64)
+        self._dirty_edge_classes = set()  # edge classes whose values were edited since the last build/refresh
 
     def _values_changed(self):
         """An estimate, measurement, information or parameter changed (subclasses drop cached linearisations)."""
@@ -101,7 +106,13 @@ class GraphElements:
         """
         if not (isinstance(edge_class, type) and issubclass(edge_class, BaseEdge)):
             raise GraphError(f"add_edges: edge_class must be a BaseEdge subclass, got {edge_class!r}")
-        rows = [tuple(r) for r in vertices]
+        if not edge_class.vertex_types or not edge_class.measurement_dimension:
+            raise GraphError(f"add_edges: {edge_class.__name__} declares no vertex_types / measurement_dimension")
+        try:
+            rows = [tuple(r) for r in vertices]
+        except TypeError:
+            raise ValueError(f"add_edges: vertices must be a list of rows (tuples) of "
+                             f"{len(edge_class.vertex_types)} vertices, got {vertices!r}") from None
         count = len(rows)
         if count == 0:
             return []
@@ -158,8 +169,11 @@ class GraphElements:
 
         Returns the list of vertices removed as a consequence.
         """
-        if not isinstance(edge, BaseEdge) or edge._graph is not self:
-            raise GraphError(f"remove_edge: this {type(edge).__name__} is not in this graph")
+        if not isinstance(edge, BaseEdge):
+            raise GraphError(f"remove_edge: expected an edge, got {type(edge).__name__}")
+        if edge._graph is not self:
+            raise GraphError(f"remove_edge: this {type(edge).__name__} is not in this graph (already removed, "
+                             "never added, or in another graph)")
         self._detach_edge(edge)
         orphans = []
         for v in edge._vertices:
@@ -171,8 +185,11 @@ class GraphElements:
 
     def remove_vertex(self, vertex):
         """Remove a vertex and every edge attached to it (other vertices stay, even if left without edges)."""
-        if not isinstance(vertex, BaseVertex) or vertex._graph is not self:
-            raise GraphError(f"remove_vertex: {type(vertex).__name__} is not in this graph")
+        if not isinstance(vertex, BaseVertex):
+            raise GraphError(f"remove_vertex: expected a vertex, got {type(vertex).__name__}")
+        if vertex._graph is not self:
+            raise GraphError(f"remove_vertex: {type(vertex).__name__} id {vertex.id} is not in this graph (already "
+                             "removed, never added, or in another graph)")
         for e in list(vertex._edges):
             self._detach_edge(e)
             for v in e._vertices:
@@ -194,6 +211,9 @@ class GraphElements:
     # ======================================================================================== queries
     def vertex(self, id, cls=None):
         """The vertex with this id (and class, when ids repeat across classes), or None."""
+        id = integer(id, "vertex: id")
+        if cls is not None and not (isinstance(cls, type) and issubclass(cls, BaseVertex)):
+            raise ValueError(f"vertex: cls must be a vertex class or None, got {cls!r}")
         by_key = self._vertex_store.by_key
         if cls is not None:
             return by_key.get((cls, id))
@@ -244,6 +264,7 @@ class GraphElements:
     def _write_edge_values(self, edge):
         """The edge's measurement, information or a parameter changed: copy them into its store row."""
         self._edge_stores[type(edge)].write_values(edge)
+        self._dirty_edge_classes.add(type(edge))
         self._values_changed()
 
     def _replace_edge_vertex(self, edge, k, old, new):
@@ -269,21 +290,26 @@ def _bulk_edge_values(edge_class, count, measurements, information, params):
     """Validated arrays of ``add_edges``: measurements (E, m), information and whitening (E, m, m), and the
     per-edge parameters {name: (E, *shape)}. Raises ValueError naming the bad argument."""
     m = int(edge_class.measurement_dimension)
-    z = np.array(measurements, dtype=float).reshape(count, -1) if np.size(measurements) == count * m else None
-    if z is None:
-        raise ValueError(f"add_edges: measurements must have shape ({count}, {m}), got {np.shape(measurements)}")
+    z = _numeric(measurements, "measurements")
+    if z.shape == (count,) and m == 1 or z.shape == (m,) and count == 1:
+        z = z.reshape(count, m)
+    if z.shape != (count, m):
+        raise ValueError(f"add_edges: measurements must have shape ({count}, {m}), got {z.shape}")
     if not np.isfinite(z).all():
         raise ValueError("add_edges: measurements must be finite")
+    edge_class.check_measurements(z, "add_edges: measurements")
     if information is None:
         information = np.eye(m)
-    info = np.asarray(information, dtype=float)
-    if info.ndim == 2:
+    info = _numeric(information, "information")
+    if info.shape == (m, m):
         info = np.broadcast_to(info, (count, m, m))
+    if info.shape != (count, m, m):
+        raise ValueError(f"add_edges: information must have shape ({m}, {m}) or ({count}, {m}, {m}), got {info.shape}")
     info, w = check_information_batch(info, m, "add_edges: information")
     params = dict(params)
     pvals = {}
     for name, default in edge_class._param_defaults.items():
-        val = np.asarray(params.pop(name, default), dtype=float)
+        val = _numeric(params.pop(name, default), f"parameter {name}")
         if val.shape == default.shape:
             val = np.broadcast_to(val, (count,) + default.shape)
         if val.shape != (count,) + default.shape or not np.isfinite(val).all():
@@ -292,3 +318,11 @@ def _bulk_edge_values(edge_class, count, measurements, information, params):
     if params:
         raise ValueError(f"add_edges: {edge_class.__name__} has no parameter(s) {sorted(params)}")
     return z, info, w, pvals
+
+
+def _numeric(value, name):
+    """``value`` as a float array; ValueError naming ``name`` when it is not numeric."""
+    try:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"add_edges: {name} must be numeric, got {value!r}") from None

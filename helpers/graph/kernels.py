@@ -10,6 +10,10 @@ se2_log_coefficients_scalar(θ)                α, β, α' of ``edges2d.se2_log_
 se2_between(xi, xj, z, jacobians)             ``EdgeSE2``: e (E, 3), J_i, J_j (E, 3, 3)
 vehicle_kinematics(xk, xn, z, dt, jacobians)  DriveBot's ``VehicleKinematicsEdge``: e (E, 3), J_k, J_{k+1}
                                               (E, 3, 3), or (0, 3, 3) arrays when ``jacobians`` is false
+
+The two batch kernels are called through thin Python wrappers that check the array shapes first (compiled code
+does not bounds-check: a short array would be read past its end); the compiled loops are ``_se2_between`` and
+``_vehicle_kinematics``.
 """
 
 import numpy as np
@@ -40,8 +44,34 @@ def se2_log_coefficients_scalar(theta):
     return half * cot, 0.5 * theta, 0.5 * cot - 0.25 * theta / np.sin(half) ** 2
 
 
-@njit(cache=True)
+def _check_rows(name, arrays, width):
+    """Every array in ``arrays`` (name -> array) must be 2-D (E, width) with the same E; ValueError otherwise."""
+    count = None
+    for key, arr in arrays.items():
+        shape = np.shape(arr)
+        if len(shape) != 2 or shape[1] != width or (count is not None and shape[0] != count):
+            raise ValueError(f"{name}: {key} must have shape (E, {width}) with the same E for every array, "
+                             f"got {shape}")
+        count = shape[0]
+    return count
+
+
 def se2_between(xi, xj, z, jacobians):
+    """EdgeSE2 for E edges in one compiled loop: (e (E, 3), J_i, J_j (E, 3, 3)); xi, xj, z are (E, 3)."""
+    _check_rows("se2_between", {"xi": xi, "xj": xj, "z": z}, 3)
+    return _se2_between(xi, xj, z, jacobians)
+
+
+def vehicle_kinematics(xk, xn, z, dt, jacobians):
+    """DriveBot's kinematics edge for E edges in one compiled loop; xk, xn, z (E, 3), dt (E,)."""
+    count = _check_rows("vehicle_kinematics", {"xk": xk, "xn": xn, "z": z}, 3)
+    if np.shape(dt) != (count,):
+        raise ValueError(f"vehicle_kinematics: dt must have shape ({count},), got {np.shape(dt)}")
+    return _vehicle_kinematics(xk, xn, z, dt, jacobians)
+
+
+@njit(cache=True)
+def _se2_between(xi, xj, z, jacobians):
     """EdgeSE2 for E edges in one loop; the names follow the equations in ``edges2d.EdgeSE2``'s docstring."""
     n = len(z)
     e = np.empty((n, 3))
@@ -76,7 +106,7 @@ def se2_between(xi, xj, z, jacobians):
 
 
 @njit(cache=True)
-def vehicle_kinematics(xk, xn, z, dt, jacobians):
+def _vehicle_kinematics(xk, xn, z, dt, jacobians):
     """e = Mᵀ(ψ_k) Δ / ΔT − u and J_k, J_{k+1} (``helpers.drivebot.edges``' docstring) for E edges in one loop."""
     n = z.shape[0]
     e = np.empty((n, 3))

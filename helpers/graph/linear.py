@@ -24,6 +24,8 @@ from numba import njit
 
 import qdldl
 
+from .errors import GraphError
+
 __all__ = ["HessianPattern", "LDLSolver", "batched_jtj", "batched_jte", "batched_matmul"]
 
 
@@ -156,6 +158,12 @@ class LDLSolver:
         numerical breakdown would still show up as a non-finite solution, which the callers test."""
         if self.pattern is not pattern:
             self.analyse(pattern)
+        if np.shape(data) != (pattern.nnz,):
+            raise ValueError(f"factor: data must hold the {pattern.nnz} CSC values of the pattern, got shape "
+                             f"{np.shape(data)}")
+        if pattern.n == 0:
+            self.ok = True
+            return self
         self.qdldl.update(pattern.upper(data), upper=True)
         if damping > 1e-9 * float(np.max(np.abs(data[pattern.diag_pos]))):
             self.ok = True
@@ -166,6 +174,12 @@ class LDLSolver:
 
     def solve(self, rhs):
         """x = H⁻¹ rhs; NaN everywhere if H was not positive definite."""
+        if self.pattern is None:
+            raise GraphError("solve: nothing has been factorised yet (call factor first)")
+        if np.shape(rhs) != (self.pattern.n,):
+            raise ValueError(f"solve: rhs must have shape ({self.pattern.n},), got {np.shape(rhs)}")
+        if self.pattern.n == 0:
+            return np.zeros(0)
         if not self.ok:
             return np.full(self.pattern.n, np.nan)
         return np.asarray(self.qdldl.solve(np.ascontiguousarray(rhs, dtype=float)), dtype=float)

@@ -7,15 +7,22 @@ The values are scattered into H's CSC data and b with ``np.bincount`` on the pos
 
 ``FreeState`` is the free state vector X as the algorithms see it: read it, write it back, step it by ⊞, and
 evaluate χ² or the whole linear system at it.
+
+Non-finite values. Every model output is shape-checked (GraphError naming the class); ``FreeState.chi2`` /
+``linearise`` and ``total_chi2`` raise ``NonFiniteError`` when χ², H or b is NaN or inf, naming the offending
+edges (found by a second, per-edge pass that only runs on that error path).
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
+from .edge import check_model_output, edge_label
+from .errors import GraphError, NonFiniteError
 from .linear import batched_jte, batched_jtj, batched_matmul
 
-__all__ = ["LinearSystem", "FreeState", "whitened_blocks", "oplus_jacobians", "chi2_at", "linearise", "total_chi2"]
+__all__ = ["LinearSystem", "FreeState", "whitened_blocks", "oplus_jacobians", "chi2_at", "linearise", "total_chi2",
+           "nonfinite_error"]
 
 
 @dataclass(frozen=True)
@@ -47,6 +54,7 @@ def whitened_blocks(structure, estimates, jacobians):
     for blk in structure.blocks:
         states = [estimates[s] for s in blk.state_index]
         e, jac = blk.store.cls.evaluate(states, blk.measurements, blk.params, jacobians=jacobians)
+        check_model_output(blk.store.cls, e, jac, blk.count, jacobians)
         if mjac is not None:
             jac = [batched_matmul(np.ascontiguousarray(j), mjac[j.shape[2]][blk.handles[:, k]])
                    if j.shape[2] in mjac else j for k, j in enumerate(jac)]
@@ -89,21 +97,61 @@ def linearise(structure, estimates):
     return LinearSystem(data, b, chi2)
 
 
-def total_chi2(vertex_store, edge_stores):
-    """χ² = Σ eᵀΩe over all live edges at the stored estimates (needs no built structure)."""
+def _store_whitened_errors(vertex_store, store):
+    """(alive rows, whitened errors (E, m)) of one edge store at the stored estimates; (rows, None) when empty."""
+    rows = store.alive_rows()
+    if len(rows) == 0:
+        return rows, None
     estimates = vertex_store.estimates.buffer
+    handles = store.handles.values[rows]
+    states = [estimates[vertex_store.state_indices(handles[:, k], d)] for k, d in enumerate(store.slot_dimensions)]
+    params = {k: g.values[rows] for k, g in store.params.items()}
+    e, _ = store.cls.evaluate(states, store.measurements.values[rows], params, jacobians=False)
+    check_model_output(store.cls, e, None, len(rows), False)
+    return rows, np.einsum("eij,ej->ei", store.whitening.values[rows], e)
+
+
+def total_chi2(vertex_store, edge_stores):
+    """χ² = Σ eᵀΩe over all live edges at the stored estimates (needs no built structure).
+
+    Raises NonFiniteError naming the edges whose χ² term is NaN or inf."""
     total = 0.0
     for store in edge_stores.values():
-        rows = store.alive_rows()
-        if len(rows) == 0:
+        _, ew = _store_whitened_errors(vertex_store, store)
+        if ew is None:
             continue
-        handles = store.handles.values[rows]
-        states = [estimates[vertex_store.state_indices(handles[:, k], d)] for k, d in enumerate(store.slot_dimensions)]
-        params = {k: g.values[rows] for k, g in store.params.items()}
-        e, _ = store.cls.evaluate(states, store.measurements.values[rows], params, jacobians=False)
-        ew = np.einsum("eij,ej->ei", store.whitening.values[rows], e)
         total += float(np.einsum("ei,ei->", ew, ew))
+    if not np.isfinite(total):
+        bad = []
+        for store in edge_stores.values():
+            rows, ew = _store_whitened_errors(vertex_store, store)
+            if ew is not None:
+                bad.extend(store.objects[r] for r in rows[~np.isfinite(np.einsum("ei,ei->e", ew, ew))])
+        raise nonfinite_error("chi2", bad)
     return total
+
+
+def nonfinite_edges(structure, estimates, jacobians):
+    """The edges of a built structure whose whitened χ² term (or, with ``jacobians``, a whitened Jacobian) is not
+    finite at ``estimates``, in block order (the per-edge pass behind NonFiniteError's message)."""
+    bad = []
+    for blk, ew, jw in whitened_blocks(structure, estimates, jacobians):
+        mask = ~np.isfinite(np.einsum("ei,ei->e", ew, ew))
+        for j in jw or ():
+            mask |= ~np.isfinite(j).all(axis=(1, 2))
+        bad.extend(blk.store.objects[r] for r in blk.rows[mask])
+    return bad
+
+
+def nonfinite_error(what, edges):
+    """The NonFiniteError for ``what`` (e.g. "optimize: at the initial estimates") naming up to 5 of ``edges``."""
+    if not edges:
+        return NonFiniteError(f"{what}: χ², H or b is not finite although every edge's term is: the sum "
+                              "overflowed (check the scale of the estimates and information matrices)")
+    names = "; ".join(edge_label(e) for e in edges[:5]) + ("" if len(edges) <= 5 else f"; … ({len(edges)} edges)")
+    return NonFiniteError(f"{what}: {len(edges)} edge(s) have a non-finite (NaN or inf) error, χ² term or "
+                          f"Jacobian: {names}. Look for a degenerate configuration (e.g. a landmark exactly at a "
+                          "pose), an overflowing estimate, or a model that returns NaN.", edges)
 
 
 class FreeState:
@@ -114,10 +162,11 @@ class FreeState:
     dX = (H + damping·I)⁻¹ b (NaN when not positive definite) with the graph's LDLᵀ solver.
     """
 
-    def __init__(self, structure, estimates, solver):
+    def __init__(self, structure, estimates, solver, vertex_objects=None):
         self.structure = structure
         self._estimates = estimates  # GrowableArray (its buffer is re-read: it is replaced when it grows)
         self.solver = solver
+        self._objects = vertex_objects  # vertex object per handle (only to name vertices in errors), or None
 
     @property
     def pattern(self):
@@ -132,13 +181,24 @@ class FreeState:
     def retract(self, dx):
         vx = self._estimates.buffer
         for group in self.structure.vertex_groups:
-            vx[group.state_index] = group.cls.oplus_batch(vx[group.state_index], -dx[group.hessian_rows])
+            moved = group.cls.oplus_batch(vx[group.state_index], -dx[group.hessian_rows])
+            _check_oplus_output(group, moved, self._objects)
+            vx[group.state_index] = moved
 
-    def chi2(self):
-        return chi2_at(self.structure, self._estimates.buffer)
+    def chi2(self, what="chi2"):
+        """χ² at X; NonFiniteError (``what`` says where) naming the edges when it is NaN or inf."""
+        value = chi2_at(self.structure, self._estimates.buffer)
+        if not np.isfinite(value):
+            raise nonfinite_error(what, nonfinite_edges(self.structure, self._estimates.buffer, False))
+        return value
 
-    def linearise(self):
-        return linearise(self.structure, self._estimates.buffer)
+    def linearise(self, what="linearise"):
+        """(H, b, χ²) at X; NonFiniteError (``what`` says where) naming the edges when any of them is not finite."""
+        system = linearise(self.structure, self._estimates.buffer)
+        if not (np.isfinite(system.chi2) and np.isfinite(system.gradient).all()
+                and np.isfinite(system.hessian_data).all()):
+            raise nonfinite_error(what, nonfinite_edges(self.structure, self._estimates.buffer, True))
+        return system
 
     def solve(self, system, damping=None):
         """dX = (H + damping·I)⁻¹ b; ``damping=None``: undamped (H⁻¹ b)."""
@@ -148,3 +208,16 @@ class FreeState:
         damped = system.hessian_data.copy()
         damped[pattern.diag_pos] += damping
         return self.solver.factor(pattern, damped, damping=damping).solve(system.gradient)
+
+
+def _check_oplus_output(group, moved, objects):
+    """``oplus_batch`` of a vertex class must return finite (V, d) estimates (else GraphError / NonFiniteError)."""
+    if np.shape(moved) != group.state_index.shape:
+        raise GraphError(f"{group.cls.__name__}.oplus_batch returned shape {np.shape(moved)}; expected "
+                         f"{group.state_index.shape} (one row per vertex)")
+    if not np.isfinite(moved).all():
+        bad = group.handles[~np.isfinite(moved).all(axis=1)].tolist()
+        names = [f"id {objects[h].id}" if objects is not None and objects[h] is not None else f"handle {h}"
+                 for h in bad[:5]]
+        raise NonFiniteError(f"{group.cls.__name__}.oplus_batch returned non-finite estimates for {len(bad)} "
+                             f"vertex(es) [{', '.join(names)}] (a non-finite or overflowing step)")

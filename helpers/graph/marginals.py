@@ -88,6 +88,14 @@ def sparse_inverse_on_pattern(solver, rows, cols):
     Every requested entry must lie in the filled pattern of L (true for every entry of H's pattern: entries inside
     a vertex's diagonal block and pairs of vertices joined by an edge); NaN is returned for any other entry.
     """
+    if solver.qdldl is None or not solver.ok:
+        raise GraphError("sparse_inverse_on_pattern: the solver holds no positive definite factorisation")
+    rows, cols = np.asarray(rows), np.asarray(cols)
+    n = solver.pattern.n
+    if rows.shape != cols.shape or rows.ndim != 1 or (rows.size and (min(rows.min(), cols.min()) < 0
+                                                                       or max(rows.max(), cols.max()) >= n)):
+        raise ValueError(f"sparse_inverse_on_pattern: rows and cols must be equally long 1-D lists of indices in "
+                         f"[0, {n}), got shapes {rows.shape} and {cols.shape}")
     lower, d, perm = solver.qdldl.factors()
     lower = sp.csc_matrix(lower)
     lower.sort_indices()

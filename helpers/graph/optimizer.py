@@ -12,7 +12,11 @@ The class is a thin front over modules with one job each:
     linear       the Hessian pattern and the LDLᵀ solver (qdldl)
     marginals    blocks of H⁻¹ by the Takahashi recursion on the LDLᵀ factor
 
-The vertices always hold the accepted state when ``optimize`` returns.
+The vertices always hold the accepted state when ``optimize`` returns, and also when it raises (any exception or
+interrupt restores the last accepted state first: ``algorithms.Algorithm.run``). Editing an edge's measurement,
+information or parameters after ``initialize_optimization`` needs no rebuild: the edited edge classes are
+re-gathered before the next linearisation. Adding/removing elements, fixing/freeing a vertex or replacing an edge's
+vertex changes the structure: ``optimize`` then asks for ``initialize_optimization()`` again.
 """
 
 import time
@@ -20,6 +24,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from ..validation import boolean, integer
 from .algorithms import (GaussNewtonParams, GTSAMLevenbergMarquardtParams, LevenbergMarquardtParams,
                          make_algorithm)
 from .elements import GraphElements
@@ -27,12 +32,12 @@ from .errors import GraphError
 from .linear import LDLSolver
 from .linearise import FreeState, total_chi2
 from .marginals import marginal_blocks
-from .structure import build_structure
+from .structure import build_structure, refresh_edge_values
 from .vertex import BaseVertex
 
 __all__ = ["SparseOptimizer", "LevenbergMarquardtParams", "GaussNewtonParams", "GTSAMLevenbergMarquardtParams"]
 
-TAU = LevenbergMarquardtParams.tau
+TAU = LevenbergMarquardtParams.tau  # LM's default τ (``optimize(tau=None)`` uses it)
 
 
 class SparseOptimizer(GraphElements):
@@ -46,7 +51,7 @@ class SparseOptimizer(GraphElements):
 
     def __init__(self, verbose=False):
         super().__init__()
-        self.verbose = bool(verbose)
+        self.verbose = boolean(verbose, "SparseOptimizer(verbose)")
         self._structure = None
         self._solver = LDLSolver()
         self._linear_system = None  # LinearSystem (H data, b, χ²) at the current state, or None
@@ -77,44 +82,52 @@ class SparseOptimizer(GraphElements):
         self._structure = structure
         self._linear_system = None
         self._structure_stale = False
+        self._dirty_edge_classes.clear()
         return True
 
     def _require_structure(self, what):
-        if self._structure_stale or self._structure is None:
-            raise GraphError(f"{what}: the graph changed since initialize_optimization(); call it first")
+        """Raise GraphError unless the structure is built and current; re-gather edited edge values."""
+        if self._structure is None:
+            raise GraphError(f"{what}: the structure has not been built; call initialize_optimization() first")
+        if self._structure_stale:
+            raise GraphError(f"{what}: the graph's structure changed since initialize_optimization() (an element "
+                             "added or removed, a vertex fixed or freed, or an edge's vertex replaced); call "
+                             "initialize_optimization() again")
+        if self._dirty_edge_classes:
+            refresh_edge_values(self._structure, self._vertex_store, self._dirty_edge_classes)
+            self._dirty_edge_classes.clear()
 
     def _free_state(self):
-        return FreeState(self._structure, self._vertex_store.estimates, self._solver)
+        return FreeState(self._structure, self._vertex_store.estimates, self._solver, self._vertex_store.objects)
 
     def chi2(self):
         """χ² = Σ eᵀΩe over all edges at the current estimates (no structure needed)."""
         return total_chi2(self._vertex_store, self._edge_stores)
 
     # ======================================================================================== optimise
-    def optimize(self, max_iterations=50, algorithm="lm", tau=TAU, gn_tolerance=1e-5):
+    def optimize(self, max_iterations=50, algorithm="lm", tau=None, gn_tolerance=None):
         """Run LM (default, the coursework's), Gauss–Newton ("gn") or GTSAM's LM ("lm-gtsam"); returns the final χ².
 
-        ``tau`` sets LM's initial damping μ = τ·max(diag H) (coursework: 1e−3; a smaller τ starts closer to
+        ``tau`` sets LM's initial damping μ = τ·max(diag H) (default, coursework: 1e−3; a smaller τ starts closer to
         Gauss–Newton, which pays off on large pose graphs far from their optimum); ``gn_tolerance`` Gauss–Newton's
-        stopping decrease. ``algorithm`` may also be a parameters object (``LevenbergMarquardtParams``,
+        stopping decrease (default 1e−5). ``algorithm`` may also be a parameters object (``LevenbergMarquardtParams``,
         ``GaussNewtonParams``, ``GTSAMLevenbergMarquardtParams``), which then sets every parameter.
         ``statistics`` then holds one dict per outer iteration (chi2, mu, rejected steps, time).
+
+        Raises NonFiniteError (naming the edges) when χ², H or b is not finite at the start or at a tried step;
+        on any exception or interrupt the vertices hold the last accepted state.
         """
-        if not np.isscalar(tau) or not np.isfinite(tau) or tau <= 0:
-            raise ValueError(f"tau must be a positive number, got {tau!r}")
-        if not isinstance(max_iterations, (int, np.integer)) or isinstance(max_iterations, bool) \
-                or max_iterations < 0:
-            raise ValueError(f"max_iterations must be a non-negative int, got {max_iterations!r}")
+        max_iterations = integer(max_iterations, "max_iterations", minimum=0)
         if isinstance(algorithm, str) and algorithm not in ("lm", "gn", "lm-gtsam"):
             raise ValueError(f"algorithm must be 'lm', 'gn' or 'lm-gtsam', got {algorithm!r}")
-        method = make_algorithm(algorithm, tau=float(tau), gn_tolerance=gn_tolerance)
+        method = make_algorithm(algorithm, tau=tau, gn_tolerance=gn_tolerance)
         self._require_structure("optimize")
         self.statistics = []
         if self._structure.dimension == 0:
             return self.chi2()
         t0 = time.perf_counter()
         self._linear_system = None  # stays None if the run raises (H is then recomputed when asked for)
-        self._linear_system = method.run(self._free_state(), int(max_iterations), lambda *row: self._record(*row, t0))
+        self._linear_system = method.run(self._free_state(), max_iterations, lambda *row: self._record(*row, t0))
         return self._linear_system.chi2
 
     def _record(self, k, chi2, mu, rejected, t0):
@@ -132,22 +145,22 @@ class SparseOptimizer(GraphElements):
         return [s["chi2"] for s in self.statistics]
 
     # ======================================================================================== H, marginals
-    def _current_linear_system(self):
-        self._require_structure("hessian")
+    def _current_linear_system(self, what="hessian"):
+        self._require_structure(what)
         if self._linear_system is None:
-            self._linear_system = self._free_state().linearise()
+            self._linear_system = self._free_state().linearise(what)
         return self._linear_system
 
     def hessian(self):
         """The undamped H = Σ JᵀΩJ at the current state (symmetric scipy CSC, n×n, free vertices only)."""
-        data = self._current_linear_system().hessian_data
+        data = self._current_linear_system("hessian").hessian_data
         if self._structure.dimension == 0:
             return sp.csc_matrix((0, 0))
         return self._structure.pattern.full_matrix(data)
 
     def gradient(self):
         """b = Σ JᵀΩe at the current state."""
-        return self._current_linear_system().gradient.copy()
+        return self._current_linear_system("gradient").gradient.copy()
 
     def compute_marginals(self, vertices=None):
         """Covariance blocks (H⁻¹ at the current state, undamped) for the given vertices (default: all).
@@ -159,9 +172,14 @@ class SparseOptimizer(GraphElements):
         """
         if vertices is None:
             vertices = self.vertices()
+        if isinstance(vertices, (BaseVertex, str)) or not hasattr(vertices, "__iter__"):
+            raise ValueError(f"compute_marginals: vertices must be a list of vertices of this graph (or None for "
+                             f"all), got {vertices!r}")
         vertices = list(vertices)
         for v in vertices:
-            if not isinstance(v, BaseVertex) or v._graph is not self:
+            if not isinstance(v, BaseVertex):
+                raise GraphError(f"compute_marginals: expected vertices of this graph, got {v!r}")
+            if v._graph is not self:
                 raise GraphError(f"compute_marginals: {v!r} is not in this graph")
-        data = self._current_linear_system().hessian_data
+        data = self._current_linear_system("compute_marginals").hessian_data
         return marginal_blocks(vertices, self._hessian_index, self._solver, self._structure.pattern, data)

@@ -37,15 +37,26 @@ class GrowableArray:
             self.buffer = bigger
 
     def append(self, value):
-        """Add one row; returns its index."""
+        """Add one row (of shape ``row_shape``); returns its index."""
+        if self.row_shape:  # a shorter row or a scalar would broadcast silently (scalar rows: numpy checks)
+            if isinstance(value, np.ndarray):
+                shape = value.shape
+            elif isinstance(value, (list, tuple)) and len(self.row_shape) == 1:
+                shape = (len(value),)  # deeper nesting cannot be assigned to a 1-D row: numpy raises
+            else:
+                shape = np.shape(value)
+            if shape != self.row_shape:
+                raise ValueError(f"append: a row must have shape {self.row_shape}, got {shape}")
         self._reserve(1)
         self.buffer[self.size] = value
         self.size += 1
         return self.size - 1
 
     def extend(self, values):
-        """Add len(values) rows; returns the index of the first."""
+        """Add len(values) rows (shape (count, *row_shape)); returns the index of the first."""
         values = np.asarray(values)
+        if values.shape[1:] != self.row_shape or values.ndim != 1 + len(self.row_shape):
+            raise ValueError(f"extend: rows must have shape (count, *{self.row_shape}), got {values.shape}")
         count = len(values)
         self._reserve(count)
         self.buffer[self.size: self.size + count] = values

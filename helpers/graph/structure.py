@@ -25,7 +25,7 @@ from scipy.sparse.csgraph import connected_components
 from .errors import GaugeFreedomError
 from .linear import HessianPattern
 
-__all__ = ["GraphStructure", "EdgeClassBlock", "VertexGroup", "build_structure", "check_gauge"]
+__all__ = ["GraphStructure", "EdgeClassBlock", "VertexGroup", "build_structure", "check_gauge", "refresh_edge_values"]
 
 
 @dataclass
@@ -115,6 +115,16 @@ def edge_class_block(store, rows, offset, hessian_index):
         whitening_t=np.ascontiguousarray(w.transpose(0, 2, 1)),
         diagonal_whitening=diagonal,
         params={k: g.values[rows].copy() for k, g in store.params.items()})
+
+
+def refresh_edge_values(structure, vertex_store, edge_classes):
+    """Re-gather the measurements, whitening and parameters of the blocks of ``edge_classes`` (edited after the
+    build): each such block is rebuilt over the same rows, exactly as ``build_structure`` would build it now. The
+    rows, vertices and Hessian pattern do not change when only values do, so nothing else is recomputed."""
+    offset = vertex_store.offset.values
+    for i, block in enumerate(structure.blocks):
+        if block.store.cls in edge_classes:
+            structure.blocks[i] = edge_class_block(block.store, block.rows, offset, structure.hessian_index)
 
 
 def hessian_contributions(block, n):

@@ -15,6 +15,7 @@ optimiser can gather and update all vertices at once); ``estimate`` / ``set_esti
 
 import numpy as np
 
+from ..validation import boolean
 from .angles import wrap_angle
 
 __all__ = ["BaseVertex", "VertexSE2", "VertexSE2Exp", "VertexPointXY"]
@@ -50,8 +51,9 @@ class BaseVertex:
 
     def __init__(self, id=None, estimate=None, fixed=False):
         cls = type(self)
-        if cls.dimension is None or int(cls.dimension) <= 0:
-            raise TypeError(f"{cls.__name__} must define a positive class attribute 'dimension'")
+        dim = cls.dimension
+        if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim <= 0:
+            raise TypeError(f"{cls.__name__} must define a positive int class attribute 'dimension', got {dim!r}")
         counter = BaseVertex._counters.setdefault(cls, [0])
         if id is None:
             id = counter[0]
@@ -63,7 +65,7 @@ class BaseVertex:
         self._graph = None
         self._h = -1  # handle inside the graph
         self._est = np.zeros(cls.dimension)
-        self._fixed = bool(fixed)
+        self._fixed = boolean(fixed, f"{cls.__name__}(fixed)")
         self._edges = {}  # insertion-ordered set of attached edges
         self._hidx = None
         if estimate is not None:
@@ -115,7 +117,9 @@ class BaseVertex:
         return self._fixed
 
     def set_fixed(self, flag=True):
-        flag = bool(flag)
+        """Fix (or free) the vertex. In a graph this changes the structure: call ``initialize_optimization()``
+        again before the next ``optimize`` (which otherwise raises GraphError)."""
+        flag = boolean(flag, f"{type(self).__name__}.set_fixed(flag)")
         if flag != self._fixed:
             self._fixed = flag
             if self._graph is not None:
