@@ -26,6 +26,7 @@ from helpers.drivebot import q3_support as q3  # noqa: E402
 from helpers.drivebot import runner, scenario_files, scenarios  # noqa: E402
 from helpers.drivebot.config import SIGMA_BOUNDS, SIGMA_RATIO  # noqa: E402
 from helpers.drivebot.edges import predict  # noqa: E402
+from helpers.graph import EdgeRangeBearing  # noqa: E402
 from helpers.graph import GaugeFreedomError, GraphError, VertexPointXY  # noqa: E402
 
 
@@ -198,6 +199,8 @@ BAD = [
     ("platform_estimate_uninitialised", lambda: _system().platform_estimate(), "initialised"),
     ("edge_residuals_name", lambda: _started().edge_residuals("EdgeHeadingPrior"), "edge_class"),
     ("predict_dt_zero", lambda: predict([0, 0, 0], [1, 0, 0], 0.0), "dt"),
+    ("predict_x_nan", lambda: predict([0, np.nan, 0], [1, 0, 0], 0.1), "x and u must be finite"),
+    ("predict_u_inf", lambda: predict([0, 0, 0], [np.inf, 0, 0], 0.1), "x and u must be finite"),
     # ---- simulator, scenarios, scenario files
     ("simulator_seed_text", lambda: DriveBotSimulator(SimulatorConfiguration(), load_scenario("q1_e"), seed="a"),
      "seed"),
@@ -623,3 +626,32 @@ def test_data_path_inside_data():
 def test_show_source_to_the_end_without_stop(capsys):
     text = notebook.source_lines(notebook.Claims.check)
     assert text.splitlines()[-1].strip() == "return ok"
+
+
+def test_optimize_checks_max_iterations_before_the_hook_runs():
+    calls = []
+    res = run_question("q3_b", maximum_step_number=30, optimization_period=None,
+                       pre_optimization_hook=lambda system: calls.append(1))
+    n = len(calls)
+    for bad in (-1, 1.5, "10"):
+        with pytest.raises(ValueError, match="max_iterations"):
+            res.system.optimize(bad)
+    assert len(calls) == n                       # the hook never ran for a rejected call
+
+
+def test_a_hook_that_edits_then_raises_leaves_a_usable_system():
+    res = run_question("q2_b", maximum_step_number=40, optimization_period=None)
+    system = res.system
+
+    def prune_then_fail(s):
+        edge = next(e for e in s.graph.edges() if isinstance(e, EdgeRangeBearing))
+        s.graph.remove_edge(edge)
+        raise RuntimeError("hook failed after editing the graph")
+
+    system.pre_optimization_hook = prune_then_fail
+    with pytest.raises(RuntimeError, match="hook failed"):
+        system.optimize()
+    system.pre_optimization_hook = None
+    x, P = system.platform_estimate()            # the structure is rebuilt for the edited graph
+    assert np.all(np.isfinite(x)) and np.all(np.isfinite(P))
+    assert np.isfinite(system.optimize())

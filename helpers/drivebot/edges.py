@@ -66,6 +66,8 @@ def predict(x, u, dt):
     dt = np.asarray(dt, dtype=float)
     if x.shape[-1:] != (3,) or u.shape[-1:] != (3,) or x.ndim > 2 or u.ndim > 2:
         raise ValueError(f"x and u must have shape (3,) or (E, 3), got {x.shape} and {u.shape}")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(u))):
+        raise ValueError("x and u must be finite (no NaN or inf)")
     if dt.ndim > 1 or not (np.all(np.isfinite(dt)) and np.all(dt > 0)):
         raise ValueError(f"dt must be positive and finite (scalar or (E,)), got {dt!r}")
     c, s = np.cos(x[..., 2]), np.sin(x[..., 2])

@@ -45,6 +45,7 @@ import numpy as np
 
 from ..graph import (BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2Prior,
                      SparseOptimizer, information_from_covariance)
+from ..validation import integer
 from .config import SimulatorConfiguration
 from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex, predict
 from .events import Event, EventType
@@ -300,9 +301,10 @@ class DriveBotSLAMSystem:
         Raises helpers.graph.GaugeFreedomError when nothing anchors the graph (e.g. all prediction edges
         removed: coursework Q3a).
         """
+        max_iterations = integer(max_iterations, "max_iterations", minimum=0)
         if self.pre_optimization_hook is not None:  # Q3b: a pruning heuristic edits the graph here
+            self._built = False        # (the structure is rebuilt even if the hook raises part-way)
             self.pre_optimization_hook(self)
-            self._built = False
         if self.remove_prediction_edges:  # Q3a: delete the prediction edges before optimising
             self._delete_prediction_edges()
         self.ensure_structure()
