@@ -5,7 +5,7 @@
 PYTHON ?= python3
 TASK   := $(PYTHON) tools/workbook.py
 
-.PHONY: all setup figures test test-unit test-notebooks lab notebooks execute bench clean distclean
+.PHONY: all setup figures test test-unit test-notebooks lab notebooks execute bench student grade student-check clean distclean
 
 all: test
 
@@ -43,6 +43,18 @@ execute:
 ## Benchmarks against the peers (prints ratios; see benchmarks/RESULTS.md).
 bench:
 	@$(TASK) bench
+
+## The student edition (exercise bodies replaced by stubs; tools/exercises.toml) in build/student.
+student:
+	@$(TASK) student
+
+## Grade the exercises: one line each, then `exercises: ...` and `other tests: ...`; one: `make grade EX=name`.
+grade:
+	@$(TASK) grade $(EX)
+
+## The CI check of the student edition (builds it, grades it and the answer key); CI=true make test runs it.
+student-check:
+	@$(TASK) student-check
 
 ## build/, figures/ and caches; distclean also removes .venv.
 clean:

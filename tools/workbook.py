@@ -5,6 +5,8 @@
     python3 tools/workbook.py lab          # = make lab
     python3 tools/workbook.py setup | test-unit | test-notebooks | notebooks | execute NB... | bench
     python3 tools/workbook.py clean | distclean
+    python3 tools/workbook.py student              # = make student: the student edition in build/student
+    python3 tools/workbook.py grade [NAME]         # = make grade [EX=NAME]: grade the exercises
 
 The interpreter that runs this script is checked first (CPython 3.11.5 to 3.13) and is the one the virtual
 environment ``.venv`` is made from. ``.venv`` is (re)created when it is missing, when it was made by another
@@ -14,6 +16,10 @@ wheels where wheels exist; the workbook does not need them.
 
 With ``CI=true`` the ``test`` task runs the strict notebook pass twice more, with numpy's CPU dispatch lowered
 (AVX-512 off, then AVX-512 and AVX2 off) and one BLAS thread, to prove the stored outputs do not depend on them.
+In the student edition (a tree with EXERCISES.md, written by ``make student``) ``test`` runs the grader, which
+fails only when a test outside the exercises fails, then nbval in lax mode over the notebooks whose exercises
+all pass; in the answer key, with ``CI=true``, ``test`` ends with the student-edition check
+(``tools/student_check.py``).
 This file keeps to syntax that old Pythons can parse, so that they reach the version check.
 """
 import hashlib
@@ -149,19 +155,68 @@ def cpu_passes():
             for label, features in CPU_PASSES]
 
 
+STUDENT_EDITION = (ROOT / "EXERCISES.md").exists()
+GRADE_STATUS = ROOT / "build" / "grade-status.json"
+
+
+def in_ci():
+    return os.environ.get("CI", "").lower() in ("1", "true", "yes")
+
+
 def test_unit():
     setup()
+    if STUDENT_EDITION:  # unfinished exercises are expected: only the other tests can fail this
+        run([venv_python(), "tools/grade.py", "--student-ok", "--status", GRADE_STATUS], env=tool_env())
+        return
     run([venv_python(), "-m", "pytest", "-W", "error", "-q", "tests"], env=tool_env())
 
 
 def test_notebooks():
     setup()
+    if STUDENT_EDITION:
+        student_notebooks()
+        return
     nbval()
-    if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
+    if in_ci():
         for label, env in cpu_passes():
             print("strict nbval again with %s and one BLAS thread (NPY_DISABLE_CPU_FEATURES=%r)"
                   % (label, env["NPY_DISABLE_CPU_FEATURES"]), flush=True)
             nbval(env)
+
+
+def test():
+    test_unit()
+    test_notebooks()
+    if in_ci() and not STUDENT_EDITION:
+        run([venv_python(), "tools/student_check.py"], env=tool_env())
+
+
+def student_notebooks():
+    """nbval --nbval-lax over the student notebooks whose exercises all passed the last grading."""
+    import tomllib
+    if not GRADE_STATUS.exists():
+        run([venv_python(), "tools/grade.py", "--student-ok", "--status", GRADE_STATUS], env=tool_env())
+    passed = set(json.loads(GRADE_STATUS.read_text(encoding="utf-8"))["passed"])
+    with open(str(ROOT / "tools" / "exercises.toml"), "rb") as fh:
+        exercises = tomllib.load(fh)["exercise"]
+    blocked = {nb for ex in exercises if ex["name"] not in passed for nb in ex.get("notebooks", [])}
+    ready = [p for p in sorted((ROOT / "notebooks").glob("*.ipynb")) if p.stem not in blocked]
+    print("notebooks whose exercises all pass: %d of %d" % (len(ready), len(ready) + len(blocked)), flush=True)
+    if ready:
+        run([venv_python(), "-m", "pytest", "-W", "error", "-q", "--nbval-lax", "--nbval-current-env",
+             "--nbval-cell-timeout", "300", "-p", "no:cacheprovider"] + [p.relative_to(ROOT) for p in ready],
+            env=tool_env())
+
+
+def student():
+    run([sys.executable, "tools/student.py", "build"])
+
+
+def grade(args):
+    setup()
+    code = run([venv_python(), "tools/grade.py"] + [a for a in args if a], env=tool_env(), check=False)
+    if code != 0:
+        raise TaskError("not every exercise and test passed (the lines above say which)")
 
 
 def figures():
@@ -198,13 +253,16 @@ def clean(everything=False):
 TASKS = {
     "setup": lambda args: setup(),
     "figures": lambda args: figures(),
-    "test": lambda args: (test_unit(), test_notebooks()),
+    "test": lambda args: test(),
     "test-unit": lambda args: test_unit(),
     "test-notebooks": lambda args: test_notebooks(),
     "notebooks": lambda args: execute([]),
     "execute": lambda args: execute(args),
     "lab": lambda args: lab(),
     "bench": lambda args: bench(),
+    "student": lambda args: student(),
+    "grade": lambda args: grade(args),
+    "student-check": lambda args: (setup(), run([venv_python(), "tools/student_check.py"], env=tool_env())),
     "clean": lambda args: clean(),
     "distclean": lambda args: clean(everything=True),
     "check-python": lambda args: (check_interpreter(), print("%s %s: supported" % (

@@ -1,0 +1,232 @@
+"""The student-edition tooling (tools/student.py, tools/student_docs.py, tools/grade.py, helpers/exercises.py).
+
+Unit tests on a tiny synthetic tree and registry, plus a build of the real registry into a temporary directory
+(about a second: it copies files and edits ASTs, it runs no test). The end-to-end grading of both trees is the
+CI check ``tools/student_check.py`` (``CI=true make test``)."""
+import ast
+import json
+import pathlib
+import sys
+import textwrap
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+
+import grade  # noqa: E402
+import student  # noqa: E402
+import student_docs  # noqa: E402
+
+from helpers import exercises  # noqa: E402
+
+MODULE = '''"""A module."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def helper(x):
+    return x + 1
+
+
+def area(width, height):
+    """Width times height."""
+    # the answer
+    product_of_the_sides = np.multiply(width, height)
+    return product_of_the_sides
+
+
+class Shape:
+    """A shape."""
+
+    @staticmethod
+    def perimeter(width, height):
+        double_the_sum_of_sides = 2 * (width + height)
+        return double_the_sum_of_sides
+'''
+
+REGISTRY = '''
+[edition]
+keep_outputs = [{ notebook = "notebooks/01_demo.ipynb", cells = ["keep-me"] }]
+remove = ["secret"]
+
+[[exercise]]
+name = "ex_area"
+source = "Sheet 1, task a"
+task = "Compute the area."
+targets = ["pkg.shapes:area"]
+tests = ["tests/test_shapes.py::test_area"]
+notebooks = ["01_demo"]
+
+[[exercise]]
+name = "ex_perimeter"
+source = "Sheet 1, task b"
+task = "Compute the perimeter."
+targets = ["pkg.shapes:Shape.perimeter"]
+tests = ["tests/test_shapes.py::test_perimeter"]
+needs = ["ex_area"]
+'''
+
+
+def _notebook(*cells):
+    return {"nbformat": 4, "nbformat_minor": 5, "metadata": {}, "cells": list(cells)}
+
+
+def _code(cell_id, source, text):
+    return {"cell_type": "code", "id": cell_id, "metadata": {}, "execution_count": 1, "source": [source],
+            "outputs": [{"output_type": "stream", "name": "stdout", "text": [text]}]}
+
+
+@pytest.fixture
+def tree(tmp_path):
+    root = tmp_path / "key"
+    (root / "pkg").mkdir(parents=True)
+    (root / "pkg" / "__init__.py").write_text("", encoding="utf-8")
+    (root / "pkg" / "shapes.py").write_text(MODULE, encoding="utf-8")
+    (root / "tools").mkdir()
+    (root / "tools" / "exercises.toml").write_text(REGISTRY, encoding="utf-8")
+    (root / "secret").mkdir()
+    (root / "secret" / "answers.txt").write_text("42", encoding="utf-8")
+    (root / "README.md").write_text("# Demo\n\n## Use\n\nRun it.\n\n## Benchmarks\n\nTimes.\n", encoding="utf-8")
+    (root / "notebooks").mkdir()
+    nb = _notebook({"cell_type": "markdown", "id": "title", "metadata": {}, "source": ["# 01 demo"]},
+                   _code("first", "x = 1\n", "1\n"), _code("keep-me", "print(2)\n", "2\n"),
+                   _code("strip-me", "print(3)\n", "3\n"))
+    (root / "notebooks" / "01_demo.ipynb").write_text(json.dumps(nb), encoding="utf-8")
+    return root
+
+
+def test_build_stubs_targets_and_keeps_signature_docstring_and_decorators(tree, tmp_path):
+    dest = student.build(tmp_path / "student", root=tree, quiet=True)
+    text = (dest / "pkg" / "shapes.py").read_text(encoding="utf-8")
+    assert "product_of_the_sides" not in text and "double_the_sum_of_sides" not in text
+    assert "# the answer" not in text
+    assert '"""Width times height."""' in text and "@staticmethod" in text
+    assert "def helper(x):\n    return x + 1" in text
+    assert student.IMPORT_LINE in text and text.index(student.IMPORT_LINE) > text.index("from __future__")
+    ast.parse(text)
+    for qualname, name in (("area", "ex_area"), ("Shape.perimeter", "ex_perimeter")):
+        assert student.body_dump(dest / "pkg" / "shapes.py", qualname) == ast.dump(
+            ast.parse(student.stub_body(name)).body[0])
+    assert not (dest / "secret").exists()
+    assert student.self_check(dest, tree, student.load_registry(tree)) == []
+
+
+def test_stub_raises_the_exercise_error(tree, tmp_path):
+    dest = student.build(tmp_path / "student", root=tree, quiet=True)
+    namespace = {"__name__": "shapes_student"}
+    exec(compile((dest / "pkg" / "shapes.py").read_text(encoding="utf-8"), "shapes.py", "exec"), namespace)
+    with pytest.raises(exercises.ExerciseNotImplemented, match="ex_area") as info:
+        namespace["area"](2, 3)
+    assert isinstance(info.value, NotImplementedError)
+    assert info.value.exercise == "ex_area" and info.value.where == "EXERCISES.md, section ex_area"
+    assert namespace["helper"](1) == 2
+
+
+def test_self_check_finds_a_body_left_in_place_and_a_solution_line_elsewhere(tree, tmp_path):
+    dest = student.build(tmp_path / "student", root=tree, quiet=True)
+    reg = student.load_registry(tree)
+    student.copy_solution(dest, "ex_area", root=tree)
+    nb_path = dest / "notebooks" / "01_demo.ipynb"
+    nb = json.loads(nb_path.read_text(encoding="utf-8"))
+    nb["cells"].append(_code("leak", "pass\n", "double_the_sum_of_sides = 2 * (width + height)\n"))
+    nb_path.write_text(json.dumps(nb), encoding="utf-8")
+    problems = student.self_check(dest, tree, reg)
+    assert any("ex_area: the body of pkg.shapes:area is not the stub" in p for p in problems)
+    assert any(p.startswith("notebooks/01_demo.ipynb") and "ex_perimeter" in p for p in problems)
+    assert any(p.startswith("pkg/shapes.py") and "product_of_the_sides" in p for p in problems)
+
+
+def test_copy_solution_restores_the_answer_key_body(tree, tmp_path):
+    dest = student.build(tmp_path / "student", root=tree, quiet=True)
+    student.copy_solution(dest, "ex_perimeter", root=tree)
+    assert student.body_dump(dest / "pkg" / "shapes.py", "Shape.perimeter") == \
+        student.body_dump(tree / "pkg" / "shapes.py", "Shape.perimeter")
+    with pytest.raises(student.BuildError, match="no exercise"):
+        student.copy_solution(dest, "nope", root=tree)
+
+
+def test_registry_errors_name_the_problem(tree):
+    path = tree / "tools" / "exercises.toml"
+    path.write_text(REGISTRY.replace('needs = ["ex_area"]', 'needs = ["ex_missing"]'), encoding="utf-8")
+    with pytest.raises(student.BuildError, match="unknown exercises"):
+        student.load_registry(tree)
+    path.write_text(REGISTRY.replace('"pkg.shapes:area"', '"pkg.shapes:volume"'), encoding="utf-8")
+    with pytest.raises(student.BuildError, match="no function volume"):
+        student.build(tree.parent / "student", root=tree, quiet=True)
+
+
+def test_notebooks_readme_and_exercises_document(tree, tmp_path):
+    dest = student.build(tmp_path / "student", root=tree, quiet=True)
+    nb = json.loads((dest / "notebooks" / "01_demo.ipynb").read_text(encoding="utf-8"))
+    ids = [c["id"] for c in nb["cells"]]
+    assert ids[:2] == ["title", student_docs.EXERCISE_CELL_ID]
+    cells = {c["id"]: c for c in nb["cells"]}
+    assert "ex_area" in "".join(cells[student_docs.EXERCISE_CELL_ID]["source"])
+    assert "".join(cells["first"]["source"]).startswith(student_docs.NOTEBOOK_IMPORT + "\n")
+    assert cells["keep-me"]["outputs"] and cells["keep-me"]["execution_count"] == 1
+    assert cells["strip-me"]["outputs"] == [] and cells["strip-me"]["execution_count"] is None
+    readme = (dest / "README.md").read_text(encoding="utf-8")
+    assert readme.startswith("# SLAM course workbook — student edition") and "## Use" in readme
+    assert "## Benchmarks" not in readme
+    doc = (dest / "EXERCISES.md").read_text(encoding="utf-8")
+    assert "## ex_perimeter" in doc and "*Needs:* `ex_area`" in doc and "`Shape.perimeter` in `pkg/shapes.py`" in doc
+
+
+def test_grader_matching_and_report(capsys):
+    assert grade.matches("tests/t.py::test_a[1-2]", "tests/t.py::test_a")
+    assert grade.matches("tests/t.py::test_bad[nn-text]", "tests/t.py::test_bad[nn-")
+    assert not grade.matches("tests/t.py::test_ab", "tests/t.py::test_a[")
+    exes = [{"name": "a", "tests": ["t::x"], "needs": []}, {"name": "b", "tests": ["t::y"], "needs": ["a"]}]
+    col = grade.Collector(exes)
+    col.outcome = {"t::x": "passed", "t::y": "failed", "t::z": "passed", "t::w": "failed"}
+    col.failure = {"t::y": "AssertionError: 1 != 2", "t::w": "boom"}
+    assert grade.report(col, exes)[:4] == (1, 1, 1, 1)
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split() == ["a", "passed"]
+    assert lines[1].split()[:3] == ["b", "FAILED", "y:"]
+    assert lines[-2:] == ["exercises: 1 passed, 1 failed", "other tests: 1 passed, 1 failed"]
+
+
+def test_notebook_handler_prints_one_short_message(capsys):
+    class Shell:
+        def set_custom_exc(self, exc_tuple, handler):
+            self.exc_tuple, self.handler = exc_tuple, handler
+
+    shell = Shell()
+    assert exercises.install_notebook_handler(shell)
+    assert shell.exc_tuple == (exercises.ExerciseNotImplemented,)
+    err = exercises.ExerciseNotImplemented("cw_q1b_prediction", "EXERCISES.md, section cw_q1b_prediction")
+    assert shell.handler(shell, type(err), err, None) == []
+    printed = capsys.readouterr().err.strip().splitlines()
+    assert len(printed) == 1 and "cw_q1b_prediction" in printed[0] and "make grade EX=cw_q1b_prediction" in printed[0]
+    shown = []
+    shell._showtraceback = lambda etype, value, stb: shown.append(stb)   # IPython: the cell's error, one line
+    assert shell.handler(shell, type(err), err, None) == []
+    assert len(shown) == 1 and len(shown[0]) == 1 and shown[0][0] == printed[0]
+
+
+def test_the_real_registry_builds_a_clean_student_edition(tmp_path):
+    reg = student.load_registry()
+    assert len(reg["exercise"]) >= 14
+    dest = student.build(tmp_path / "student", quiet=True)            # raises if the self-check fails
+    for ex in reg["exercise"]:
+        for target in ex["targets"]:
+            module, qualname = student.split_target(target)
+            assert student.body_dump(student.module_path(dest, module), qualname) != \
+                student.body_dump(student.module_path(ROOT, module), qualname), target
+        for pattern in ex["tests"]:
+            assert (ROOT / pattern.split("::")[0]).exists(), pattern
+    assert (dest / "EXERCISES.md").exists() and (dest / "tools" / "grade.py").exists()
+    assert not (dest / "tools" / "student.py").exists()
+    text = (dest / "helpers" / "drivebot" / "edges.py").read_text(encoding="utf-8")
+    assert "return VehicleKinematicsEdge.evaluate_reference(states, z, params, jacobians)" in text
+
+
+def test_exercise_module_imports_nothing_from_helpers():
+    tree = ast.parse((ROOT / "helpers" / "exercises.py").read_text(encoding="utf-8"))
+    imported = [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)] + \
+        [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    assert not [m for m in imported if m.startswith("helpers") or m.startswith(".")], imported
+    assert textwrap.dedent(exercises.message("x", "y")).startswith("exercise x is not implemented yet")

@@ -1,0 +1,83 @@
+"""The CI check of the student edition (issue 16, part E); ``make test`` runs it with CI=true.
+
+    python tools/student_check.py [--keep DIR]
+
+1. builds the student edition into a temporary directory (``tools/student.py``, with its self-check);
+2. grades it with the answer key's interpreter and PYTHONPATH at the student tree (no second environment):
+   expects ``exercises: 0 passed, N failed`` and ``other tests: K passed, 0 failed``;
+3. grades the answer key: expects ``exercises: N passed, 0 failed``;
+4. copies one answer-key solution (``SOLUTION``, an exercise whose tests need no other exercise) into the student
+   tree and grades that exercise: expects exactly it to pass (and the other tests still to pass).
+Prints one line per step and ``student edition check: N passed, M failed``; exit status 1 on any failure.
+"""
+from __future__ import annotations
+
+import os
+import pathlib
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import student  # noqa: E402
+
+ROOT = student.ROOT
+SOLUTION = "lab8_2a_individual_compatibility"
+SUMMARY = re.compile(r"^(exercises|other tests): (\d+) passed, (\d+) failed$", re.M)
+
+
+def grade(tree: pathlib.Path, *args):
+    """Run tree's grader with this interpreter; returns (stdout, {"exercises": (p, f), "other tests": (p, f)})."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    out = subprocess.run([sys.executable, str(tree / "tools" / "grade.py")] + list(args), cwd=str(tree), env=env,
+                         capture_output=True, text=True)
+    counts = {m.group(1): (int(m.group(2)), int(m.group(3))) for m in SUMMARY.finditer(out.stdout)}
+    return out.stdout, counts
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    keep = pathlib.Path(argv[argv.index("--keep") + 1]) if "--keep" in argv else None
+    start = time.perf_counter()
+    results = []
+
+    def check(label, ok, output=""):
+        results.append(ok)
+        print("%s: %s" % ("ok    " if ok else "FAILED", label), flush=True)
+        if not ok and output:
+            print(output[-4000:], flush=True)
+
+    n = len(student.load_registry()["exercise"])
+    tmp = pathlib.Path(tempfile.mkdtemp(prefix="student-edition-"))
+    tree = keep or tmp / "student"
+    try:
+        student.build(tree, quiet=True)
+        check("the student edition builds and passes its self-check (%d exercises)" % n, True)
+        out, counts = grade(tree)
+        check("student edition: exercises: %s passed, %s failed (expected 0, %d); other tests: %s passed, %s failed"
+              % (counts.get("exercises", ("?", "?")) + (n,) + counts.get("other tests", ("?", "?"))),
+              counts.get("exercises") == (0, n) and counts.get("other tests", (0, 1))[1] == 0
+              and counts["other tests"][0] > 0, out)
+        out, counts = grade(ROOT)
+        check("answer key: exercises: %d passed, 0 failed" % n, counts.get("exercises") == (n, 0), out)
+        student.copy_solution(tree, SOLUTION)
+        out, counts = grade(tree)
+        passed = re.findall(r"^(\w+)\s+passed$", out, re.M)
+        check("student edition with the answer key's %s: exactly that exercise passes" % SOLUTION,
+              passed == [SOLUTION] and counts.get("exercises") == (1, n - 1)
+              and counts.get("other tests", (0, 1))[1] == 0, out)
+    except student.BuildError as err:
+        check("the student edition builds: %s" % err, False)
+    finally:
+        if keep is None:
+            shutil.rmtree(tmp, ignore_errors=True)
+    print("student edition check took %.0f s" % (time.perf_counter() - start))
+    print("student edition check: %d passed, %d failed" % (sum(results), len(results) - sum(results)))
+    return 0 if all(results) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
