@@ -1,0 +1,139 @@
+"""What has happened since the last factorisation: the current pose and the new landmarks, as linear functions
+of a few factorised vertices plus independent noise.
+
+Between two factorisations of H the graph grows (one pose per tick, new landmarks, new edges) but its
+covariance is not recomputed. The window keeps, for every quantity y that the factorisation does not cover —
+the newest pose x, and the landmarks created since (tentative or just confirmed) — the linearised form
+
+    y = ŷ + A δa + e,     δa ~ N(0, Σ_aa) (the *anchors*: vertices of the factorisation),
+                          e  ~ N(0, P_e), independent of everything the factorisation covers,
+
+because e is made of the odometry and measurement noise of edges added after the factorisation. Then
+
+    Cov(y) = A Σ_aa Aᵀ + P_e,    Cov(y, ℓ) = A Σ_aℓ  for a factorised landmark ℓ.
+
+Operations (x is always the first item, 3 rows):
+
+- ``reset(anchor)``: x = the anchor pose itself (A = I, e = 0), no other items;
+- ``predict(F, Q)``: x' = F x + n, Cov(n) = Q — A_x ← F A_x, P_e ← T P_e Tᵀ + blkdiag(Q, 0), T = blkdiag(F, I);
+- ``add_landmark(key, m̂, G_x, G_z, R)``: m = g(x, z) linearised, A_m = G_x A_x, e_m = G_x e_x + G_z v, so
+  P_mm = G_x P_xx G_xᵀ + G_z R G_zᵀ and P_m· = G_x P_x·;
+- ``add_independent(key, m̂, anchor_index, G_x, P)``: a landmark that is a function of one anchor pose plus its
+  own noise (a tentative landmark carried over a factorisation, re-derived from the pose that first saw it);
+- ``remove(key)``.
+
+Observations of window landmarks are *not* fused (no update step): the window's covariances are those of the
+prediction alone, which is conservative (never smaller than the truth) until the next factorisation, where the
+optimiser fuses everything.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["LocalWindow"]
+
+
+class LocalWindow:
+    """The linear-Gaussian bookkeeping of the module docstring. ``anchor_dims``: dimensions of the anchors."""
+
+    def __init__(self):
+        self.anchor_dims = []
+        self.A = np.zeros((3, 0))
+        self.P = np.zeros((3, 3))
+        self.means = {}
+        self.rows = {}
+        self._order = []
+
+    # ------------------------------------------------------------------------------------------- structure
+    def reset(self, anchor_dims, pose_anchor: int = 0):
+        """Anchors of dimensions ``anchor_dims``; x is anchor ``pose_anchor`` itself."""
+        self.anchor_dims = [int(d) for d in anchor_dims]
+        self.A = np.zeros((3, sum(self.anchor_dims)))
+        start = self._anchor_offset(pose_anchor)
+        self.A[:, start:start + 3] = np.eye(3)
+        self.P = np.zeros((3, 3))
+        self.means, self.rows, self._order = {}, {}, []
+
+    def _anchor_offset(self, i):
+        return int(sum(self.anchor_dims[:i]))
+
+    @property
+    def keys(self):
+        return list(self._order)
+
+    def __contains__(self, key):
+        return key in self.rows
+
+    def _append(self, key, mean, A_rows, P_cross, P_self):
+        if key in self.rows:
+            raise ValueError(f"key: {key!r} is already in the window")
+        r = self.P.shape[0]
+        dim = len(mean)
+        P = np.zeros((r + dim, r + dim))
+        P[:r, :r] = self.P
+        P[r:, :r] = P_cross
+        P[:r, r:] = P_cross.T
+        P[r:, r:] = 0.5 * (P_self + P_self.T)
+        self.P = P
+        self.A = np.vstack([self.A, A_rows])
+        self.rows[key] = r
+        self.means[key] = np.asarray(mean, dtype=float).copy()
+        self._order.append(key)
+
+    # ------------------------------------------------------------------------------------------- operations
+    def predict(self, F, Q):
+        """x' = F x + n with Cov(n) = Q."""
+        self.A[:3] = F @ self.A[:3]
+        self.P[:3, :] = F @ self.P[:3, :]
+        self.P[:, :3] = self.P[:, :3] @ F.T
+        self.P[:3, :3] += Q
+        self.P[:3, :3] = 0.5 * (self.P[:3, :3] + self.P[:3, :3].T)
+
+    def add_landmark(self, key, mean, Gx, Gz, R):
+        """m = g(x, z) for the current pose x and an observation with noise covariance R."""
+        P_cross = Gx @ self.P[:3, :]
+        P_self = Gx @ self.P[:3, :3] @ Gx.T + Gz @ R @ Gz.T
+        self._append(key, mean, Gx @ self.A[:3], P_cross, P_self)
+
+    def add_independent(self, key, mean, anchor: int, Gx, P_self):
+        """m = ŷ + G_x δa_anchor + e_m with Cov(e_m) = P_self, e_m independent of the other items."""
+        A_rows = np.zeros((len(mean), self.A.shape[1]))
+        s = self._anchor_offset(anchor)
+        A_rows[:, s:s + Gx.shape[1]] = Gx
+        self._append(key, mean, A_rows, np.zeros((len(mean), self.P.shape[0])), P_self)
+
+    def remove(self, key):
+        r = self.rows.pop(key)
+        dim = len(self.means.pop(key))
+        self._order.remove(key)
+        keep = np.r_[0:r, r + dim:self.P.shape[0]]
+        self.P = self.P[np.ix_(keep, keep)]
+        self.A = self.A[keep]
+        for k in self._order:
+            if self.rows[k] > r:
+                self.rows[k] -= dim
+
+    # ------------------------------------------------------------------------------------------- queries
+    def item_rows(self, keys):
+        """Row indices of x followed by the items ``keys`` (in that order)."""
+        rows = [np.arange(3)]
+        for k in keys:
+            r = self.rows[k]
+            rows.append(np.arange(r, r + len(self.means[k])))
+        return np.concatenate(rows)
+
+    def covariance(self, keys, sigma):
+        """Joint covariance of [x; items ``keys``; other factorised vertices o] from ``sigma``, the joint
+        covariance of [anchors; o] of the factorisation (anchors in ``reset`` order)."""
+        na = self.A.shape[1]
+        rows = self.item_rows(keys)
+        A = self.A[rows]
+        k = len(rows)
+        q = sigma.shape[0] - na
+        out = np.empty((k + q, k + q))
+        out[:k, :k] = A @ sigma[:na, :na] @ A.T + self.P[np.ix_(rows, rows)]
+        cross = A @ sigma[:na, na:]
+        out[:k, k:] = cross
+        out[k:, :k] = cross.T
+        out[k:, k:] = sigma[na:, na:]
+        return 0.5 * (out + out.T)
