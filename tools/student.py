@@ -128,14 +128,20 @@ def _has_docstring(node) -> bool:
         and isinstance(s.value.value, str)
 
 
-def replace_body(path: pathlib.Path, qualname: str, new_body: str) -> str:
-    """Replace the body of ``qualname`` in ``path`` by ``new_body`` (dedented text); returns the old body."""
+def _locate_body(path: pathlib.Path, qualname: str):
+    """(source lines of ``path``, the function node of ``qualname``, first and last line of its body)."""
     text = path.read_text(encoding="utf-8")
     lines = text.splitlines(keepends=True)
     node = find_function(ast.parse(text), qualname)
     if node is None:
         raise BuildError("%s: no function %s" % (path, qualname))
     first, last = body_span(node, lines)
+    return lines, node, first, last
+
+
+def replace_body(path: pathlib.Path, qualname: str, new_body: str) -> str:
+    """Replace the body of ``qualname`` in ``path`` by ``new_body`` (dedented text); returns the old body."""
+    lines, node, first, last = _locate_body(path, qualname)
     indent = body_indent(node, lines)
     old = "".join(lines[first - 1:last])
     body = textwrap.indent(textwrap.dedent(new_body).strip("\n") + "\n", indent)
@@ -145,12 +151,7 @@ def replace_body(path: pathlib.Path, qualname: str, new_body: str) -> str:
 
 
 def function_body_source(path: pathlib.Path, qualname: str) -> str:
-    text = path.read_text(encoding="utf-8")
-    lines = text.splitlines(keepends=True)
-    node = find_function(ast.parse(text), qualname)
-    if node is None:
-        raise BuildError("%s: no function %s" % (path, qualname))
-    first, last = body_span(node, lines)
+    lines, _, first, last = _locate_body(path, qualname)
     return textwrap.dedent("".join(lines[first - 1:last]))
 
 
