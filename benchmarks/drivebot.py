@@ -331,7 +331,7 @@ def bench_lm(graph, repeats=3, exact=False):
         set_graph_estimates(graph, arrays, p0, l0)
         t0 = time.perf_counter()
         graph.initialize_optimization()
-        chi2 = graph.optimize(50)
+        chi2 = graph.optimize(50, algorithm="lm")
         return time.perf_counter() - t0, (chi2, graph.iterations, list(graph.statistics))
 
     t_h, (chi2_h, it_h, stats) = _best(helpers_run, repeats)

@@ -10,6 +10,14 @@ The file layout (JSON)::
 
     recorded_with: {command, date, gtsam, g2opy, numpy, python, machine}
     <dataset>:     {<solver>: {solver, config, iterations, chi2, chi2_history, time_s, marginals_time_s}}
+    convergence:   {recorded_with: {...},
+                    <dataset>: {<run>: {the same fields}}}     one entry per dataset of helpers.datasets.DATASETS
+
+The ``<dataset>`` entries (W10000, Victoria Park) are the runs notebook 09 shows. ``convergence`` holds GTSAM's LM on
+every shipped dataset (``benchmarks/record_peers.py --convergence``): run "GTSAM" with its default parameters, and
+"GTSAM optimum" run to convergence (tolerances 1e−15), whose χ² is the optimum ``tests/test_graph_convergence.py``
+holds the default ``optimize()`` to — except W20000, whose χ² still falls after 1000 GTSAM iterations: there
+"GTSAM 200 iterations" (tolerances 0) is the reference instead.
 
 χ² values are g2o's / the workbook's Σ eᵀΩe (GTSAM's error × 2); times are wall seconds on the recording machine.
 """
@@ -19,9 +27,11 @@ import numpy as np
 
 from .paths import data_path
 
-__all__ = ["RESULTS_FILE", "STATE_FILE", "load_recorded_peers", "load_victoria_park_marginals", "covariance_agreement"]
+__all__ = ["RESULTS_FILE", "STATE_FILE", "CONVERGENCE", "load_recorded_peers", "recorded_convergence",
+           "load_victoria_park_marginals", "covariance_agreement"]
 
 RESULTS_FILE = "peer_results.json"
+CONVERGENCE = "convergence"
 STATE_FILE = "peer_victoria_park.npz"
 
 
@@ -31,6 +41,21 @@ def load_recorded_peers() -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"{path} is missing; record it with `python benchmarks/record_peers.py`")
     return json.loads(path.read_text(encoding="utf-8"))
+
+
+def recorded_convergence(name: str, run: str = "GTSAM optimum") -> dict:
+    """GTSAM's recorded run ``run`` ("GTSAM", "GTSAM optimum", or for W20000 "GTSAM 200 iterations") on the shipped
+    dataset ``name``: {solver, config, iterations, chi2, chi2_history, time_s, marginals_time_s}.
+
+    Raises KeyError naming the dataset and the runs recorded for it when there is no such run."""
+    part = load_recorded_peers().get(CONVERGENCE, {})
+    runs = part.get(name)
+    if runs is None or name == "recorded_with":
+        raise KeyError(f"no convergence run recorded for dataset {name!r}; recorded: "
+                       f"{sorted(k for k in part if k != 'recorded_with')}")
+    if run not in runs:
+        raise KeyError(f"no run {run!r} recorded for dataset {name!r}; recorded: {sorted(runs)}")
+    return runs[run]
 
 
 def load_victoria_park_marginals() -> dict:

@@ -183,7 +183,7 @@ def test_lm_tau_argument_equals_the_parameters_field():
     b, _, _ = chain(6)
     a.initialize_optimization()
     b.initialize_optimization()
-    assert a.optimize(20, tau=1e-5) == b.optimize(20, algorithm=LevenbergMarquardtParams(tau=1e-5))
+    assert a.optimize(20, algorithm="lm", tau=1e-5) == b.optimize(20, algorithm=LevenbergMarquardtParams(tau=1e-5))
     assert outputs(a) == outputs(b)
 
 

@@ -1,4 +1,5 @@
-"""The recorded peer results (data/peer_results.json, data/peer_victoria_park.npz) that notebook 09 shows.
+"""The recorded peer results (data/peer_results.json, data/peer_victoria_park.npz): those notebook 09 shows, and
+GTSAM's LM on every shipped dataset (the "convergence" part, the references of tests/test_graph_convergence.py).
 
 Without the peers: the recording is complete, names the pinned peer versions, and the workbook's own covariances at
 the recorded Victoria Park state equal GTSAM's recorded ones. With the peers installed (environment-peers.txt):
@@ -12,9 +13,15 @@ import pytest
 from helpers import datasets
 from helpers.graph import VertexPointXY, VertexSE2
 from helpers.paths import repository_root
-from helpers.recorded_peers import covariance_agreement, load_recorded_peers, load_victoria_park_marginals
+from helpers.recorded_peers import (CONVERGENCE, covariance_agreement, load_recorded_peers,
+                                    load_victoria_park_marginals, recorded_convergence)
 
 SOLVERS = {"w10000": ("helpers", "GTSAM", "g2o"), "victoria_park": ("helpers", "GTSAM")}
+#: the convergence runs recorded per dataset (W20000's χ² still falls after 1000 GTSAM iterations: no optimum)
+CONVERGENCE_RUNS = {name: ("GTSAM", "GTSAM 200 iterations" if name == "w20000" else "GTSAM optimum")
+                    for name in datasets.DATASETS}
+#: the convergence runs a live GTSAM repeats in the tests (the large datasets take minutes)
+LIVE_CONVERGENCE = sorted(set(datasets.DATASETS) - {"victoria_park", "w10000", "w20000"})
 
 
 def _peer_pins():
@@ -36,6 +43,28 @@ def test_recording_is_complete_and_names_the_pinned_peers():
     # the reference optimum of W10000 (2 × GTSAM's error 144.87) and GTSAM's Victoria Park optimum
     assert rec["w10000"]["GTSAM"]["chi2"] == pytest.approx(289.73, abs=0.01)
     assert rec["victoria_park"]["GTSAM"]["chi2"] == pytest.approx(2.107e5, rel=1e-3)
+
+
+def test_convergence_recording_covers_every_dataset():
+    part = load_recorded_peers()[CONVERGENCE]
+    pins = _peer_pins()
+    assert part["recorded_with"]["gtsam"] == pins["gtsam"]
+    assert "benchmarks/record_peers.py --convergence" in part["recorded_with"]["command"]
+    assert set(part) - {"recorded_with"} == set(datasets.DATASETS)
+    for name, runs in CONVERGENCE_RUNS.items():
+        assert set(part[name]) == set(runs)
+        for run in runs:
+            r = recorded_convergence(name, run)
+            assert r["chi2_history"][-1] == pytest.approx(r["chi2"], rel=1e-12)
+            assert len(r["chi2_history"]) == r["iterations"] + 1
+        # the run to convergence (or longer) ends at or below GTSAM's default run
+        assert part[name][runs[1]]["chi2"] <= part[name]["GTSAM"]["chi2"] * (1 + 1e-12)
+    assert recorded_convergence("w10000")["chi2"] == pytest.approx(289.7347632, rel=1e-8)
+    assert recorded_convergence("w20000", "GTSAM")["iterations"] == 28          # GTSAM stops on its relative rule
+    with pytest.raises(KeyError, match="GTSAM optimum"):
+        recorded_convergence("w20000")
+    with pytest.raises(KeyError, match="no convergence run recorded for dataset 'intel'"):
+        recorded_convergence("intel")
 
 
 def _our_covariances_at(state):
@@ -90,3 +119,23 @@ def test_live_g2o_matches_the_recording(peer_runs):
     rec = load_recorded_peers()["w10000"]["g2o"]
     live = peer_runs.run_g2o("w10000", iters=rec["iterations"], marginals=False)
     np.testing.assert_allclose(live["hist"], rec["chi2_history"], rtol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def recorder():
+    from benchmarks import record_peers
+
+    return record_peers
+
+
+@pytest.mark.parametrize("name", LIVE_CONVERGENCE)
+def test_live_gtsam_matches_the_convergence_recording(recorder, name):
+    pytest.importorskip("gtsam", reason="GTSAM is an optional peer (environment-peers.txt; no Windows wheel)")
+    problem = recorder.gtsam_problem(name)
+    live = {"GTSAM": recorder.gtsam_lm(problem, "LM defaults"),
+            "GTSAM optimum": recorder.gtsam_lm(problem, "", recorder.OPTIMUM_TOLERANCE,
+                                               recorder.OPTIMUM_MAX_ITERATIONS)}
+    for run, r in live.items():
+        rec = recorded_convergence(name, run)
+        assert r["iterations"] == rec["iterations"]
+        np.testing.assert_allclose(r["chi2_history"], rec["chi2_history"], rtol=1e-6)

@@ -1,4 +1,6 @@
-"""The optimisation algorithms: Gauss–Newton, the coursework's Levenberg–Marquardt and GTSAM's LM schedule.
+"""The named optimisation algorithms: Gauss–Newton, the coursework's Levenberg–Marquardt and GTSAM's LM schedule.
+
+(The default of ``optimize``, a Levenberg–Marquardt that converges far from the optimum, is in ``algorithms_default``.)
 
 Each algorithm is a small class built from a frozen parameters dataclass; ``run(state, max_iterations, record)``
 works on a ``linearise.FreeState`` and returns the ``LinearSystem`` (H, b, χ²) of the state it leaves in the
@@ -7,11 +9,11 @@ vertices. All three try steps through ONE mechanism, ``Trial``: it holds the acc
 relinearises), ``reject()`` goes back to X, ``finish()`` leaves X in the vertices. ``record(k, chi2, mu,
 rejected)`` is called once per outer iteration.
 
-Transactions (g2o's push/pop). ``Algorithm.run`` — shared by the three — runs an algorithm's ``iterate`` inside
-``try/except BaseException``: whatever escapes (a NonFiniteError, an exception in an edge model or a vertex's ⊞,
-KeyboardInterrupt) first puts the last accepted X back into the vertices, then propagates. A non-finite χ², H or b
-at the initial estimates, at a tried step or at an accepted one raises NonFiniteError (from ``FreeState``) naming
-the edges.
+Transactions (g2o's push/pop). ``Algorithm.run`` — shared by all (the default algorithm too) — runs an algorithm's
+``iterate`` inside ``try/except BaseException``: whatever escapes (a NonFiniteError, an exception in an edge model
+or a vertex's ⊞, KeyboardInterrupt) first puts the last accepted X back into the vertices, then propagates. A
+non-finite χ², H or b at the initial estimates, at a tried step or at an accepted one raises NonFiniteError (from
+``FreeState``) naming the edges.
 
 Levenberg–Marquardt exactly as the coursework (Lourakis, SBA Fig. 2), τ = 1e−3, ε1 = ε2 = ε3 = 1e−12, ε4 = 0:
     R0 = χ²(X), (H, b) at X; stop if ‖b‖∞ < ε1;  μ = τ·max diag H, ν = 2
@@ -155,12 +157,16 @@ class Algorithm:
         trial = None
         start = state.get()
         try:
-            trial = Trial(state)
+            trial = self.make_trial(state)
             self.iterate(trial, max_iterations, record)
             return trial.finish()
         except BaseException:
             state.set(start if trial is None else trial.x)
             raise
+
+    def make_trial(self, state):
+        """The ``Trial`` over ``state`` (the default algorithm's moves SE(2) poses along arcs)."""
+        return Trial(state)
 
     def iterate(self, trial, max_iterations, record):
         raise NotImplementedError
