@@ -189,6 +189,18 @@ def test_grader_matching_and_report(capsys):
     assert lines[-2:] == ["exercises: 1 passed, 1 failed", "other tests: 1 passed, 1 failed"]
 
 
+def test_an_unlisted_test_stopped_by_a_stub_grades_with_that_exercise(capsys):
+    exes = [{"name": "a", "tests": ["t::x"], "needs": []}, {"name": "b", "tests": ["t::y"], "needs": []}]
+    col = grade.Collector(exes)
+    col.outcome = {"t::x": "passed", "t::y": "passed", "t::z": "failed", "t::w": "failed"}
+    col.failure = {"t::z": "ExerciseNotImplemented: exercise b is not implemented yet",
+                   "t::w": "ExerciseNotImplemented: exercise nope is not implemented yet"}
+    assert grade.report(col, exes)[:4] == (1, 1, 0, 1)       # z fails b; w names no exercise: an other test
+    out = capsys.readouterr().out
+    assert "b" + " " * 3 + "FAILED  z: ExerciseNotImplemented: exercise b" in out
+    assert grade.stub_named("AssertionError", exes) is None
+
+
 def test_notebook_handler_prints_one_short_message(capsys):
     class Shell:
         def set_custom_exc(self, exc_tuple, handler):
