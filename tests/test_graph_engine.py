@@ -240,3 +240,27 @@ def test_marginal_blocks_in_caller_order_with_zero_blocks_for_fixed_vertices():
     np.testing.assert_allclose(out[point], cov[9:11, 9:11], rtol=1e-9, atol=1e-14)
     np.testing.assert_allclose(out[poses[2]], cov[3:6, 3:6], rtol=1e-9, atol=1e-14)
     assert g.linear_solver is g._solver and g.linear_solver.qdldl.factors()[0].nnz > 0
+
+
+def test_hessian_factors_reproduce_the_permuted_hessian():
+    g, _, _ = chain(6)
+    g.initialize_optimization()
+    lower, d, perm = g.hessian_factors()
+    H = g.hessian().toarray()
+    unit = np.eye(len(d)) + lower.toarray()
+    np.testing.assert_allclose(unit @ np.diag(d) @ unit.T, H[np.ix_(perm, perm)], atol=1e-9 * np.abs(H).max())
+    assert np.all(d > 0) and np.allclose(np.triu(lower.toarray()), 0)
+    d0, lower0 = d.copy(), lower.toarray()
+    v = next(v for v in g.vertices() if not v.fixed)
+    v.set_estimate(v.estimate + np.array([0.1, -0.2, 0.3]))        # a new state: new factors, old copies intact
+    lower1, d1, perm1 = g.hessian_factors()
+    H1 = g.hessian().toarray()
+    unit1 = np.eye(len(d1)) + lower1.toarray()
+    np.testing.assert_allclose(unit1 @ np.diag(d1) @ unit1.T, H1[np.ix_(perm1, perm1)], atol=1e-9 * np.abs(H1).max())
+    assert not np.allclose(H1, H) and np.array_equal(d, d0) and np.array_equal(lower.toarray(), lower0)
+    empty = SparseOptimizer()
+    empty.initialize_optimization()
+    assert empty.hessian_factors() is None
+    stale = SparseOptimizer()
+    with pytest.raises(GraphError, match="hessian_factors"):
+        stale.hessian_factors()

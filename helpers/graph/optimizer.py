@@ -167,6 +167,21 @@ class SparseOptimizer(GraphElements):
         """b = Σ JᵀΩe at the current state."""
         return self._current_linear_system("gradient").gradient.copy()
 
+    def hessian_factors(self):
+        """(L, d, perm) of the undamped H = Σ JᵀΩJ at the current state, Pᵀ H P = (I + L) D (I + L)ᵀ with
+        P[perm[j], j] = 1 and L strictly lower (scipy CSC); None when H is not positive definite or the graph has
+        no free vertex. The graph's own solver refactorises H numerically (the ordering and symbolic analysis of
+        ``initialize_optimization`` are reused) and the factor is copied out, so later changes do not affect it.
+        Selected columns of H⁻¹ then cost one forward and one backward sweep each."""
+        system = self._current_linear_system("hessian_factors")
+        if self._structure.dimension == 0:
+            return None
+        self._solver.factor(self._solver.pattern, system.hessian_data)
+        if not self._solver.ok:
+            return None
+        lower, d, perm = self._solver.qdldl.factors()
+        return sp.csc_matrix(lower), np.asarray(d, dtype=float), np.asarray(perm, dtype=np.int64)
+
     def compute_marginals(self, vertices=None):
         """Covariance blocks (H⁻¹ at the current state, undamped) for the given vertices (default: all).
 
