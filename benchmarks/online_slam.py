@@ -5,7 +5,7 @@
 Sections (each prints a markdown table):
 
 - ``targets``: DriveBot q2_b and q2_e, seed 0, clutter 0 and 2 per scan, every algorithm ("nn", "mahalanobis",
-  "ml", "jcbb") through ``helpers.online_slam.run_question_with_association``: precision, recall, landmarks
+  "ml", "jcbb") through ``helpers.drivebot.run_question(..., data_association=...)``: precision, recall, landmarks
   created / true, map RMSE after matching, final χ², time. Targets: JCBB precision ≥ 0.99 and recall ≥ 0.95 without
   clutter, precision ≥ 0.98 with 2 per scan.
 - ``timing``: the same runs with ids given and with "jcbb" (q2_b and q2_e, seed 0, no clutter), alternated
@@ -30,7 +30,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from helpers.online_slam import run_question_with_association  # noqa: E402
+from helpers.drivebot import run_question  # noqa: E402
 from helpers.online_slam.victoria_park import run_victoria_park  # noqa: E402
 
 ALGORITHMS = ("nn", "mahalanobis", "ml", "jcbb")
@@ -54,7 +54,7 @@ def targets():
     for q in ("q2_b", "q2_e"):
         for clutter in (0.0, 2.0):
             for alg in ALGORITHMS:
-                res, wall, cpu = _timed(run_question_with_association, q, alg, clutter_rate=clutter, seed=0)
+                res, wall, cpu = _timed(run_question, q, data_association=alg, clutter_rate=clutter, seed=0)
                 r = res.association_report()
                 print(_row([q, f"{clutter:g}", alg, f"{r['precision']:.4f}", f"{r['recall']:.4f}",
                             f"{r['n_landmarks']} ({r['n_true_landmarks']})", f"{r['map_rmse']:.3f}",
@@ -71,7 +71,7 @@ def timing(repeats):
         parts = None
         for _ in range(repeats):
             for alg in (None, "jcbb"):
-                res, wall, cpu = _timed(run_question_with_association, q, alg, seed=0)
+                res, wall, cpu = _timed(run_question, q, data_association=alg, seed=0)
                 best[alg] = [min(best[alg][0], wall), min(best[alg][1], cpu)]
                 if alg:
                     st = res.system.frontend.stats
@@ -90,7 +90,7 @@ def nn_seeds(seeds):
         for seed in seeds:
             out = []
             for alg in ("nn", "jcbb"):
-                r = run_question_with_association("q2_b", alg, clutter_rate=clutter, seed=seed).association_report()
+                r = run_question("q2_b", data_association=alg, clutter_rate=clutter, seed=seed).association_report()
                 out += [f"{r['precision']:.4f}", f"{r['recall']:.4f}", str(r["n_landmarks"])]
             print(_row([seed, f"{clutter:g}"] + out + [r["n_true_landmarks"]]), flush=True)
 

@@ -8,7 +8,7 @@ import numbers
 
 import numpy as np
 
-__all__ = ["integer", "positive_number", "finite_number", "int_array", "index_list", "finite_vector",
+__all__ = ["integer", "positive_number", "finite_number", "nonnegative_number", "probability", "int_array", "index_list", "finite_vector",
            "feature_columns", "float_array", "rng_seed", "boolean", "one_of", "function"]
 
 
@@ -40,6 +40,21 @@ def finite_number(value, name: str) -> float:
     """``value`` as a finite float; bool, non-numbers, NaN and ±inf raise ValueError naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value):
         raise ValueError(f"{name} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def nonnegative_number(value, name: str, what: str = "") -> float:
+    """``value`` as a finite float ≥ 0; anything else raises ValueError naming ``name`` (``what`` says what the
+    number is, e.g. "spurious detections per scan")."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value < 0:
+        raise ValueError(f"{name} must be a finite number ≥ 0{f' ({what})' if what else ''}, got {value!r}")
+    return float(value)
+
+
+def probability(value, name: str) -> float:
+    """``value`` as a float in [0, 1]; anything else raises ValueError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0.0 <= float(value) <= 1.0:
+        raise ValueError(f"{name} must be a probability in [0, 1], got {value!r}")
     return float(value)
 
 

@@ -38,17 +38,17 @@ from __future__ import annotations
 
 import math
 import time as _time
-from dataclasses import dataclass, field
 
 import numpy as np
 from tqdm import tqdm
 
-from . import pruning
-from ..gaussian import chi2_interval, confidence_level
-from ..graph import GraphError, wrap_angle_mod
+from ..graph import GraphError
 from ..timing import timed
-from ..validation import boolean, function, positive_number
+from ..validation import boolean, function
+from . import pruning
+from .association import HiddenIds
 from .config import SimulatorConfiguration
+from .results import Results
 from .scenarios import Scenario, load_scenario
 from .simulator import DriveBotSimulator, make_rng
 from .slam_system import DriveBotSLAMSystem
@@ -83,77 +83,6 @@ QUESTIONS = {
 _HOOK_FACTORIES = {"q3_b": pruning.q3b_hook}
 
 
-@dataclass
-class Results:
-    """What a run produced (N = number of processed ticks = number of vehicle vertices).
-
-    optimization_times (N,)          wall time of each optimisation at its tick, NaN where none ran
-    optimization_iterations (N,)     LM iterations of that optimisation (0 where none ran)
-    chi2_time, chi2_history (K,)     tick time and χ² after each optimisation (including the final one)
-    vehicle_true_state_time (N,), vehicle_true_state_history (3×N)
-    vehicle_state_time (N,), vehicle_state_history (3×N)      smoothed estimates from the final graph
-    vehicle_covariance_history (3×N) covariance diagonals (0 for the fixed first vertex)
-    vehicle_in_graph (N,) bool       False for vertices deleted from the graph (Q3a/Q3b); their state and
-                                     covariance columns are NaN so that plots show gaps, not spikes
-    system                           the final DriveBotSLAMSystem (``system.graph`` is the optimiser)
-    run_time                         wall time of the whole run (s; machine-dependent)
-    """
-
-    question: str
-    config: SimulatorConfiguration
-    scenario: Scenario
-    optimization_times: np.ndarray
-    chi2_time: np.ndarray
-    chi2_history: np.ndarray
-    vehicle_true_state_time: np.ndarray
-    vehicle_true_state_history: np.ndarray
-    vehicle_state_time: np.ndarray
-    vehicle_state_history: np.ndarray
-    vehicle_covariance_history: np.ndarray
-    vehicle_in_graph: np.ndarray
-    system: DriveBotSLAMSystem
-    optimization_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    run_time: float = field(default=float("nan"))
-    #: laser readings the simulator did not report because their noisy range was ≤ 0
-    dropped_laser_readings: int = 0
-
-    @property
-    def n_steps(self) -> int:
-        """N, the number of processed ticks (= vehicle vertices created)."""
-        return int(self.vehicle_state_time.size)
-
-    @property
-    def final_chi2(self) -> float:
-        """χ² after the last optimisation (ValueError for partial results of a run that never optimised)."""
-        if self.chi2_history.size == 0:
-            raise ValueError("final_chi2: no optimisation has run (partial results of a run that failed early)")
-        return float(self.chi2_history[-1])
-
-    def state_error(self) -> np.ndarray:
-        """Estimate − truth (3×N), heading wrapped into [−π, π)."""
-        err = self.vehicle_state_history - self.vehicle_true_state_history
-        err[2] = wrap_angle_mod(err[2])
-        return err
-
-    def graph_statistics(self) -> dict:
-        """Counts by vertex and edge type and the χ² degrees of freedom (see DriveBotSLAMSystem)."""
-        return self.system.graph_statistics()
-
-    def landmark_estimates(self):
-        """(x 2×L, P 2×2×L, ids) from the final graph."""
-        return self.system.landmark_estimates()
-
-    def chi2_bounds(self, k: float = 4.0) -> tuple[float, float]:
-        """The "k-sigma" acceptance interval of χ²: the central interval of χ²_dof holding probability
-        2Φ(k) − 1 (0.99994 for k = 4), from the χ² quantiles; dof = measurement dimensions − free state
-        dimensions ((0, 0) when dof < 1: a graph without redundancy fits exactly)."""
-        k = positive_number(k, "k")
-        dof = self.graph_statistics()["dof"]
-        if dof < 1:
-            return 0.0, 0.0
-        return chi2_interval(int(dof), confidence_level(k))
-
-
 class RunError(RuntimeError):
     """A run failed part-way with an exception that cannot carry attributes (rare: the runner normally re-raises
     the original exception with ``tick``, ``phase`` and ``results`` attached). Raised ``from`` that exception;
@@ -184,8 +113,17 @@ def question_setup(name: str, **overrides):
     return load_scenario(scenario_name), SimulatorConfiguration(**cfg), slam
 
 
-def run_question(name: str, seed=0, progress: bool = False, step_hook=None, **overrides) -> Results:
+def run_question(name: str, seed=0, progress: bool = False, step_hook=None, data_association: str | None = None,
+                 clutter_rate: float = 0.0, detection_probability: float = 1.0, **overrides) -> Results:
     """Run a coursework question ("q1_b" … "q3_b") with its settings (module table) and ``overrides``.
+
+    Data association (``association``): ``data_association`` None keeps the coursework (each landmark
+    observation carries its true id); "nn", "mahalanobis", "ml" or "jcbb" hides the ids from the SLAM system,
+    which associates every scan online with that L09 algorithm (the simulator still knows the ids, for
+    ``Results.association_report()``). A harder sensor: ``clutter_rate`` spurious detections per scan (Poisson,
+    uniform in the sensor footprint; needs an algorithm) and ``detection_probability`` (each true detection kept
+    with this probability). The association's own options (``association.ASSOCIATION_OPTIONS``) are accepted as
+    overrides when ``data_association`` is given.
 
     Overrides are SimulatorConfiguration fields (``enable_compass=True``, ``perturb_with_noise=False``, …)
     or SLAM options (``optimization_period``, ``compass_edge``, ``remove_prediction_edges``,
@@ -211,17 +149,23 @@ def run_question(name: str, seed=0, progress: bool = False, step_hook=None, **ov
     A note in the traceback says the same. (An exception object that refuses attributes is wrapped in a
     ``RunError`` raised from it, with the same three attributes.)
     """
+    overrides = dict(overrides)
+    hidden = HiddenIds.from_arguments(data_association, clutter_rate, detection_probability, seed, overrides)
     scenario, config, slam = question_setup(name, **overrides)
-    return run(config, scenario, seed=seed, progress=progress, question=name, step_hook=step_hook, **slam)
+    return run(config, scenario, seed=seed, progress=progress, question=name, step_hook=step_hook,
+               hidden_ids=hidden, **slam)
 
 
 def run(config: SimulatorConfiguration, scenario: Scenario, seed=0, progress: bool = False, question: str = "",
-        step_hook=None, **slam_options) -> Results:
+        step_hook=None, hidden_ids: HiddenIds | None = None, **slam_options) -> Results:
     """The main loop (module docstring) for any configuration and scenario (``step_hook`` and failures part-way:
-    see run_question)."""
+    see run_question; ``hidden_ids``: the set-up of a run with the ids hidden, ``association.HiddenIds``)."""
     function(step_hook, "step_hook", allow_none=True)
+    if hidden_ids is not None and not isinstance(hidden_ids, HiddenIds):
+        raise ValueError(f"hidden_ids must be an association.HiddenIds or None, got {type(hidden_ids).__name__}")
     _check_slam_options(slam_options, "run")
-    return _main_loop(config, scenario, seed, {"": slam_options}, progress, question, step_hook, catch=False)[""]
+    return _main_loop(config, scenario, seed, {"": slam_options}, progress, question, step_hook, catch=False,
+                      hidden=hidden_ids)[""]
 
 
 def _check_slam_options(options, where):
@@ -257,8 +201,9 @@ def run_variants(name: str, variants: dict, seed=0, progress: bool = False, **ov
     return _main_loop(config, scenario, seed, slams, progress, name, None, catch=True)
 
 
-def _main_loop(config, scenario, seed, slams, progress, question, step_hook, catch):
-    """The loop of the module docstring for one simulator and the SLAM systems ``slams`` {name: options}."""
+def _main_loop(config, scenario, seed, slams, progress, question, step_hook, catch, hidden=None):
+    """The loop of the module docstring for one simulator and the SLAM systems ``slams`` {name: options}
+    (``hidden``: a ``HiddenIds`` set-up builds the one system and corrupts the events it receives)."""
     boolean(progress, "progress")
     if not isinstance(question, str):
         raise ValueError(f"question must be a string (the label of the run), got {question!r}")
@@ -267,8 +212,10 @@ def _main_loop(config, scenario, seed, slams, progress, question, step_hook, cat
     if not config.enable_odometry:
         raise ValueError("enable_odometry must be True for a run: the SLAM system creates one vehicle vertex per "
                          "odometry tick (use DriveBotSimulator directly to study other event streams)")
-    systems = {n: DriveBotSLAMSystem(config, **opts) for n, opts in slams.items()}
+    factory = DriveBotSLAMSystem if hidden is None else hidden.system
+    systems = {n: factory(config, **opts) for n, opts in slams.items()}
     state = _Run(sim, systems, question, config, scenario)
+    state.hidden = hidden
     try:
         _loop(state, progress, step_hook, catch)
         return _finish_all(state, catch)
@@ -292,6 +239,7 @@ class _Run:
         self.true_t, self.true_x = [], []
         self.t_start = _time.perf_counter()
         self.tick, self.phase = 0, "start"
+        self.hidden = None
 
 
 def _loop(state, progress, step_hook, catch):
@@ -303,6 +251,8 @@ def _loop(state, progress, step_hook, catch):
         while sim.keep_running():
             state.tick = len(state.true_t)
             events = sim.events()
+            if state.hidden is not None:
+                events = state.hidden.filter(events, sim)
             for n, system in systems.items():
                 if n in state.failed:
                     continue
@@ -343,6 +293,7 @@ def _finish_all(state, catch):
             continue
         out[n].run_time = shared + rec[n]["wall"] + _time.perf_counter() - t_sys
         out[n].dropped_laser_readings = state.sim.dropped_laser_readings
+        out[n].hidden_ids = state.hidden
     return {n: out[n] for n in state.systems}
 
 
@@ -408,6 +359,7 @@ def _partial(state, name):
         res = _results(system, rec, true_t[:n], true_x[:n] or np.zeros((0, 3)), state.question, state.config,
                        state.scenario, history)
         res.run_time = _time.perf_counter() - state.t_start
+        res.hidden_ids = state.hidden
         return res
     except Exception:             # noqa: BLE001 - the original error matters more than its partial results
         return None

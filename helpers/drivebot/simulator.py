@@ -133,6 +133,7 @@ class DriveBotSimulator:
         self._next_laser = offs[1] * c.laser_measurement_period
         self._next_compass = offs[2] * c.compass_measurement_period
         self._started = True
+        self.laser_fired = False           # whether the laser fired in the last step (event or not)
         q = EventQueue()
         q.insert(Event(0.0, EventType.INITIAL_CONDITION, np.zeros(3), np.zeros((3, 3))))
         q.insert(self._odometry_event())
@@ -153,11 +154,13 @@ class DriveBotSimulator:
         self._t += c.dt
         self._step += 1
         q = EventQueue()
+        self.laser_fired = False
         # 2. sensors, insertion order GPS, laser, compass
         if c.enable_gps and self._t >= self._next_gps:
             q.insert(self._gps_event())
             self._next_gps += c.gps_measurement_period + self._rng.random() * c.sensor_dither_time
         if c.enable_laser and self._t >= self._next_laser:
+            self.laser_fired = True        # also when no landmark is in range (then no LANDMARK event)
             ev = self._laser_event()
             if ev is not None:
                 q.insert(ev)

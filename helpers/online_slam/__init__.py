@@ -12,20 +12,19 @@ Modules by responsibility (each imports only modules listed before it, and the l
     closure         loop closure: trusted candidates, duplicates, merging tentative landmarks into old ones
     frontend        ``OnlineFrontEnd``: candidates, joint predicted density, tracking, bookkeeping
     metrics         precision, recall, agreement after the best one-to-one matching; map error
-    drivebot_system ``AssociatingSLAMSystem`` (DriveBot with the ids hidden), ``SensorCorruption`` (clutter, misses)
-    drivebot        ``run_question_with_association`` and ``AssociationResults.association_report()``
     victoria_park   ``run_victoria_park``: the real dataset, associated online, and its report
 
-``online_slam`` sits above ``graph``, ``association``, ``datasets`` and ``drivebot``; none of them imports it.
+``online_slam`` sits above ``graph``, ``association`` and ``datasets``; none of them imports it. DriveBot with the
+ids hidden is ``helpers.drivebot.association`` (``run_question(name, data_association="jcbb", …)``), which uses
+this package.
 """
-from .algorithms import ALGORITHMS
-from .drivebot import AssociationResults, run_question_with_association
+from .algorithms import ALGORITHMS, check_algorithm
 from .frontend import OnlineFrontEnd, ScanResult
-from .metrics import association_scores, best_matching
+from .metrics import association_scores, best_matching, map_errors
 from .models import RangeBearingModel
 from .tracks import ConfirmationRules
 from .victoria_park import VictoriaParkResults, run_victoria_park
 
-__all__ = ["ALGORITHMS", "AssociationResults", "ConfirmationRules", "OnlineFrontEnd", "RangeBearingModel",
-           "ScanResult", "VictoriaParkResults", "association_scores", "best_matching", "run_question_with_association",
+__all__ = ["ALGORITHMS", "ConfirmationRules", "OnlineFrontEnd", "RangeBearingModel", "ScanResult",
+           "VictoriaParkResults", "association_scores", "best_matching", "check_algorithm", "map_errors",
            "run_victoria_park"]

@@ -21,7 +21,6 @@ go stale as soon as the graph changes.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 from numba import njit
 
 __all__ = ["MarginalColumns", "ldl_solve_columns", "hessian_factors"]

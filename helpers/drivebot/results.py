@@ -1,0 +1,95 @@
+"""``Results``: what a DriveBot run produced (histories, the final graph, and its statistics and reports)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..gaussian import chi2_interval, confidence_level
+from ..graph import wrap_angle_mod
+from ..validation import positive_number
+from .association import HiddenIds, association_report
+from .config import SimulatorConfiguration
+from .scenarios import Scenario
+from .slam_system import DriveBotSLAMSystem
+
+__all__ = ["Results"]
+
+
+@dataclass
+class Results:
+    """What a run produced (N = number of processed ticks = number of vehicle vertices).
+
+    optimization_times (N,)          wall time of each optimisation at its tick, NaN where none ran
+    optimization_iterations (N,)     LM iterations of that optimisation (0 where none ran)
+    chi2_time, chi2_history (K,)     tick time and χ² after each optimisation (including the final one)
+    vehicle_true_state_time (N,), vehicle_true_state_history (3×N)
+    vehicle_state_time (N,), vehicle_state_history (3×N)      smoothed estimates from the final graph
+    vehicle_covariance_history (3×N) covariance diagonals (0 for the fixed first vertex)
+    vehicle_in_graph (N,) bool       False for vertices deleted from the graph (Q3a/Q3b); their state and
+                                     covariance columns are NaN so that plots show gaps, not spikes
+    system                           the final DriveBotSLAMSystem (``system.graph`` is the optimiser)
+    run_time                         wall time of the whole run (s; machine-dependent)
+    """
+
+    question: str
+    config: SimulatorConfiguration
+    scenario: Scenario
+    optimization_times: np.ndarray
+    chi2_time: np.ndarray
+    chi2_history: np.ndarray
+    vehicle_true_state_time: np.ndarray
+    vehicle_true_state_history: np.ndarray
+    vehicle_state_time: np.ndarray
+    vehicle_state_history: np.ndarray
+    vehicle_covariance_history: np.ndarray
+    vehicle_in_graph: np.ndarray
+    system: DriveBotSLAMSystem
+    optimization_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    run_time: float = field(default=float("nan"))
+    #: laser readings the simulator did not report because their noisy range was ≤ 0
+    dropped_laser_readings: int = 0
+    #: the set-up of a run with the ids hidden or the sensor corrupted (``association.HiddenIds``; None: the
+    #: coursework's run, ids given)
+    hidden_ids: HiddenIds | None = None
+
+    @property
+    def n_steps(self) -> int:
+        """N, the number of processed ticks (= vehicle vertices created)."""
+        return int(self.vehicle_state_time.size)
+
+    @property
+    def final_chi2(self) -> float:
+        """χ² after the last optimisation (ValueError for partial results of a run that never optimised)."""
+        if self.chi2_history.size == 0:
+            raise ValueError("final_chi2: no optimisation has run (partial results of a run that failed early)")
+        return float(self.chi2_history[-1])
+
+    def state_error(self) -> np.ndarray:
+        """Estimate − truth (3×N), heading wrapped into [−π, π)."""
+        err = self.vehicle_state_history - self.vehicle_true_state_history
+        err[2] = wrap_angle_mod(err[2])
+        return err
+
+    def graph_statistics(self) -> dict:
+        """Counts by vertex and edge type and the χ² degrees of freedom (see DriveBotSLAMSystem)."""
+        return self.system.graph_statistics()
+
+    def association_report(self) -> dict:
+        """The data association of the run against the simulator's truth (``association.association_report``):
+        precision, recall, n_landmarks, n_true_landmarks, map_rmse, … — for any run, ids given or hidden."""
+        return association_report(self)
+
+    def landmark_estimates(self):
+        """(x 2×L, P 2×2×L, ids) from the final graph."""
+        return self.system.landmark_estimates()
+
+    def chi2_bounds(self, k: float = 4.0) -> tuple[float, float]:
+        """The "k-sigma" acceptance interval of χ²: the central interval of χ²_dof holding probability
+        2Φ(k) − 1 (0.99994 for k = 4), from the χ² quantiles; dof = measurement dimensions − free state
+        dimensions ((0, 0) when dof < 1: a graph without redundancy fits exactly)."""
+        k = positive_number(k, "k")
+        dof = self.graph_statistics()["dof"]
+        if dof < 1:
+            return 0.0, 0.0
+        return chi2_interval(int(dof), confidence_level(k))
