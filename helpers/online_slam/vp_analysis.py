@@ -1,0 +1,134 @@
+"""Victoria Park, looked at after the run: trajectories and maps of two runs, and why the odometry misleads the
+association (notebook support for ``run_victoria_park``).
+
+    ref = res.reference                                  # the known-id run (run_victoria_park(..., known_id_reference=True))
+    drift = odometry_drift(ref, lengths=(10, 50, 200, 800))
+    pairs = near_duplicate_ids(ref, radius=2.0)
+
+``odometry_drift`` compares the file's odometry, composed over n consecutive steps, with the relative pose of the
+known-id solution between the same two poses: the heading error e_θ = θ_sol − θ_odo (wrapped), the position error
+|p_sol − p_odo| in the first pose's frame, and the normalised error eᵀ P⁻¹ e with P the odometry's own covariance
+propagated over the n steps (P ← J₁ P J₁ᵀ + J₂ Q J₂ᵀ, the Jacobians of the pose composition). For consistent
+odometry eᵀ P⁻¹ e has mean 3 (χ²₃) whatever n is.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..datasets import read_dataset
+from ..graph import VertexPointXY, VertexSE2
+from ..validation import integer, positive_number
+from .victoria_park import victoria_park_scans
+
+__all__ = ["poses", "landmark_positions", "odometry_drift", "near_duplicate_ids", "plot_map"]
+
+
+def poses(res) -> np.ndarray:
+    """(N, 3) pose estimates of a run's graph, in the order the poses were created (file order)."""
+    return np.array([v.estimate for v in res.graph.vertices() if isinstance(v, VertexSE2)])
+
+
+def landmark_positions(res) -> np.ndarray:
+    """(L, 2) landmark estimates: the file's landmarks for a known-id run, the confirmed ones for an online run."""
+    if res.frontend is None:
+        pts = [v.estimate for v in res.landmark_vertices.values()]
+    else:
+        pts = [t.vertex.estimate for t in res.frontend.confirmed_tracks()]
+    if not pts:                      # a run that confirmed nothing
+        pts = [v.estimate for v in res.graph.vertices() if isinstance(v, VertexPointXY)]
+    return np.array(pts, dtype=float).reshape(-1, 2)
+
+
+def _odometry(stream):
+    return [(item[3], np.linalg.inv(item[4])) for item in stream if item[0] == "odometry"]
+
+
+def _compose_with_covariance(odo, start, n):
+    """The odometry composed over steps start … start+n−1 from the identity, and its propagated covariance."""
+    p, P = np.zeros(3), np.zeros((3, 3))
+    for z, Q in odo[start:start + n]:
+        c, s = math.cos(p[2]), math.sin(p[2])
+        J1 = np.array([[1.0, 0.0, -s * z[0] - c * z[1]], [0.0, 1.0, c * z[0] - s * z[1]], [0.0, 0.0, 1.0]])
+        J2 = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        P = J1 @ P @ J1.T + J2 @ Q @ J2.T
+        p = np.array([p[0] + c * z[0] - s * z[1], p[1] + s * z[0] + c * z[1], p[2] + z[2]])
+    return p, P
+
+
+def _relative(a, b):
+    c, s = math.cos(a[2]), math.sin(a[2])
+    d = b[:2] - a[:2]
+    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], b[2] - a[2]])
+
+
+def odometry_drift(reference, lengths=(10, 50, 200, 800), n_samples: int = 100, seed: int = 0) -> list[dict]:
+    """Per length n: the odometry over n steps against the known-id solution ``reference`` (module docstring), at
+    ``n_samples`` start poses drawn with a seeded Generator. Each row: n, path (median metres driven),
+    heading_error (median |e_θ|, rad), heading_bias (mean e_θ, rad), heading_sigma (median odometry σ_θ, rad),
+    position_error (median, m), nees (median eᵀP⁻¹e)."""
+    n_samples = integer(n_samples, "n_samples", minimum=1)
+    odo = _odometry(victoria_park_scans(read_dataset("victoria_park")))
+    X = poses(reference)
+    if X.shape[0] != len(odo) + 1:
+        raise ValueError(f"reference: expected a Victoria Park graph of {len(odo) + 1} poses, got {X.shape[0]}")
+    rng = np.random.default_rng(integer(seed, "seed", minimum=0))
+    rows = []
+    for n in (integer(v, "lengths", minimum=1, below=len(odo)) for v in lengths):
+        he, hs, pe, nees, path = [], [], [], [], []
+        for i in rng.integers(0, len(odo) - n, n_samples):
+            p, P = _compose_with_covariance(odo, int(i), n)
+            e = _relative(X[i], X[i + n]) - p
+            e[2] = math.remainder(e[2], 2.0 * math.pi)
+            he.append(e[2])
+            hs.append(math.sqrt(P[2, 2]))
+            pe.append(math.hypot(e[0], e[1]))
+            nees.append(float(e @ np.linalg.solve(P, e)))
+            path.append(sum(math.hypot(z[0], z[1]) for z, _ in odo[int(i):int(i) + n]))
+        he = np.array(he)
+        rows.append({"n": n, "path": float(np.median(path)), "heading_error": float(np.median(np.abs(he))),
+                     "heading_bias": float(he.mean()), "heading_sigma": float(np.median(hs)),
+                     "position_error": float(np.median(pe)), "nees": float(np.median(nees))})
+    return rows
+
+
+def near_duplicate_ids(reference, radius: float = 2.0) -> list[tuple]:
+    """Pairs of the file's landmark ids whose known-id estimates lie within ``radius`` metres of each other:
+    (id_a, id_b, distance m, co-observed: whether one scan ever saw both, observations of a, of b)."""
+    radius = positive_number(radius, "radius")
+    pos = reference.landmark_vertices
+    if not pos:
+        raise ValueError("reference: a known-id run (run_victoria_park(None) or res.reference) is needed")
+    together, count = set(), {}
+    for item in victoria_park_scans(read_dataset("victoria_park")):
+        if item[0] == "scan":
+            ids = item[4].tolist()
+            for a in ids:
+                count[a] = count.get(a, 0) + 1
+                together.update((a, b) for b in ids if b != a)
+    keys = sorted(pos)
+    out = []
+    for k, a in enumerate(keys):
+        for b in keys[k + 1:]:
+            d = float(np.linalg.norm(pos[a].estimate - pos[b].estimate))
+            if d < radius:
+                out.append((a, b, d, (a, b) in together, count.get(a, 0), count.get(b, 0)))
+    return out
+
+
+def plot_map(ax, online, reference, colors) -> None:
+    """Trajectories and landmarks of the online run and the known-id reference on one axes (metres)."""
+    Xr, Xo = poses(reference), poses(online)
+    Lr, Lo = landmark_positions(reference), landmark_positions(online)
+    ax.plot(Xr[:, 0], Xr[:, 1], color=colors["muted"], lw=0.8, label="trajectory, ids known")
+    ax.plot(Xo[:, 0], Xo[:, 1], color=colors["alt"], lw=0.8, alpha=0.8, label="trajectory, ids hidden")
+    ax.plot(Lr[:, 0], Lr[:, 1], "x", color=colors["truth"], ms=5, label=f"landmarks, ids known ({len(Lr)})")
+    ax.plot(Lo[:, 0], Lo[:, 1], "o", mfc="none", color=colors["alt"], ms=4,
+            label=f"landmarks found, ids hidden ({len(Lo)})")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal")
+    ax.legend(loc="best", fontsize="small")
+
+

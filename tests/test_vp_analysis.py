@@ -1,0 +1,68 @@
+"""Victoria Park analysis helpers (notebook 23): exact answers on hand-made references."""
+import math
+from types import SimpleNamespace
+
+import matplotlib
+import numpy as np
+import pytest
+
+from helpers.datasets import read_dataset
+from helpers.graph import VertexPointXY, VertexSE2
+from helpers.online_slam import vp_analysis as va
+from helpers.online_slam.victoria_park import victoria_park_scans
+
+matplotlib.use("Agg")
+
+
+def _dead_reckoning_reference(heading_offset_per_step=0.0):
+    """A 'solution' that is the file's odometry composed from the origin (plus a heading drift per step)."""
+    odo = [item[3] for item in victoria_park_scans(read_dataset("victoria_park")) if item[0] == "odometry"]
+    p, X = np.zeros(3), [np.zeros(3)]
+    for z in odo:
+        c, s = math.cos(p[2]), math.sin(p[2])
+        p = np.array([p[0] + c * z[0] - s * z[1], p[1] + s * z[0] + c * z[1], p[2] + z[2] + heading_offset_per_step])
+        X.append(p)
+    graph = SimpleNamespace(vertices=lambda: [VertexSE2(None, x) for x in X])
+    return SimpleNamespace(graph=graph, frontend=None, landmark_vertices={})
+
+
+def test_odometry_drift_is_zero_for_the_odometry_itself():
+    rows = va.odometry_drift(_dead_reckoning_reference(), lengths=(5, 40), n_samples=10)
+    assert [r["n"] for r in rows] == [5, 40]
+    for r in rows:
+        assert r["heading_error"] < 1e-9 and r["position_error"] < 1e-9 and r["nees"] < 1e-9
+        assert r["heading_sigma"] > 0 and r["path"] > 0
+
+
+def test_odometry_drift_sees_a_heading_bias():
+    b = 1e-3
+    rows = va.odometry_drift(_dead_reckoning_reference(b), lengths=(100,), n_samples=5)
+    assert rows[0]["heading_bias"] == pytest.approx(100 * b, rel=1e-9)
+    assert rows[0]["nees"] > 3
+
+
+def test_near_duplicate_ids_and_bad_input():
+    ref = SimpleNamespace(landmark_vertices={34: VertexPointXY(None, np.array([0.0, 0.0])),
+                                             189: VertexPointXY(None, np.array([0.5, 0.0])),
+                                             5: VertexPointXY(None, np.array([9.0, 0.0]))})
+    pairs = va.near_duplicate_ids(ref, radius=1.0)
+    assert len(pairs) == 1
+    a, b, d, together, na, nb = pairs[0]
+    assert (a, b, together, na, nb) == (34, 189, False, 41, 33) and d == pytest.approx(0.5)
+    with pytest.raises(ValueError, match="radius"):
+        va.near_duplicate_ids(ref, radius=-1)
+    with pytest.raises(ValueError, match="reference"):
+        va.near_duplicate_ids(SimpleNamespace(landmark_vertices={}))
+    with pytest.raises(ValueError, match="lengths"):
+        va.odometry_drift(_dead_reckoning_reference(), lengths=(0,))
+
+
+def test_plot_map_draws_both_runs():
+    import matplotlib.pyplot as plt
+    ref = _dead_reckoning_reference()
+    ref.landmark_vertices = {1: VertexPointXY(None, np.array([1.0, 2.0]))}
+    fig, ax = plt.subplots()
+    va.plot_map(ax, ref, ref, {"muted": "k", "alt": "g", "truth": "k"})
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels[2] == "landmarks, ids known (1)" and len(ax.lines) == 4
+    plt.close(fig)
