@@ -1,11 +1,15 @@
 """The student-edition tooling (tools/student.py, tools/student_docs.py, tools/grade.py, helpers/exercises.py).
 
-Unit tests on a tiny synthetic tree and registry, plus a build of the real registry into a temporary directory
-(about a second: it copies files and edits ASTs, it runs no test). The end-to-end grading of both trees is the
-CI check ``tools/student_check.py`` (``CI=true make test``)."""
+Unit tests on a tiny synthetic tree and registry, plus one build of the real registry per session into a
+temporary directory (about a second: it copies files and edits ASTs, it runs no test) and a few calls of the fast
+paths inside that tree (subprocesses, a few seconds). The end-to-end grading of both trees is the CI check
+``tools/student_check.py`` (``CI=true make test``)."""
 import ast
 import json
+import os
 import pathlib
+import shutil
+import subprocess
 import sys
 import textwrap
 
@@ -219,10 +223,16 @@ def test_notebook_handler_prints_one_short_message(capsys):
     assert len(shown) == 1 and len(shown[0]) == 1 and shown[0][0] == printed[0]
 
 
-def test_the_real_registry_builds_a_clean_student_edition(tmp_path):
+@pytest.fixture(scope="session")
+def real_edition(tmp_path_factory):
+    """The student edition of the real registry, built once per session (tests that change it copy it)."""
+    return student.build(tmp_path_factory.mktemp("edition") / "student", quiet=True)   # raises if the self-check fails
+
+
+def test_the_real_registry_builds_a_clean_student_edition(real_edition):
     reg = student.load_registry()
     assert len(reg["exercise"]) >= 14
-    dest = student.build(tmp_path / "student", quiet=True)            # raises if the self-check fails
+    dest = real_edition
     for ex in reg["exercise"]:
         for target in ex["targets"]:
             module, qualname = student.split_target(target)
@@ -234,6 +244,153 @@ def test_the_real_registry_builds_a_clean_student_edition(tmp_path):
     assert not (dest / "tools" / "student.py").exists()
     text = (dest / "helpers" / "drivebot" / "edges.py").read_text(encoding="utf-8")
     assert "return VehicleKinematicsEdge.evaluate_reference(states, z, params, jacobians)" in text
+
+
+# ---------------------------------------------------------------------------------------------- fast paths
+def _body_of(text):
+    """The AST dump of a rewrite body as the builder writes it (indented into a function: multi-line strings in
+    it gain the indentation)."""
+    source = "def f():\n" + textwrap.indent(textwrap.dedent(text).strip("\n") + "\n", "    ")
+    return "\n".join(ast.dump(s) for s in ast.parse(source).body[0].body)
+
+
+def test_every_fast_path_is_the_rewrite_in_the_student_edition(real_edition):
+    reg = student.load_registry()
+    rewrites = reg["edition"]["rewrite"]
+    assert {r["target"] for r in rewrites} >= {"helpers.association.jcbb:jcbb", "helpers.association.snn:snn",
+                                               "helpers.association.compatibility:individual_compatibility_matrix"}
+    for entry in rewrites:
+        module, qualname = student.split_target(entry["target"])
+        got = student.body_dump(student.module_path(real_edition, module), qualname)
+        assert got == _body_of(entry["body"]), entry["target"]
+        assert got != student.body_dump(student.module_path(ROOT, module), qualname), entry["target"]
+    for rel in reg["edition"]["remove"]:
+        assert not (real_edition / rel).exists(), rel
+    assert not (real_edition / "helpers" / "association" / "jcbb_kernel.py").exists()
+    for path in (real_edition / "helpers").rglob("*.py"):     # nothing imports the removed compiled search
+        assert "jcbb_kernel" not in "".join(l for l in path.read_text(encoding="utf-8").splitlines(True)
+                                            if l.lstrip().startswith(("import", "from"))), path
+    for entry in reg["edition"].get("kept", []):
+        assert entry["exercise"] in {ex["name"] for ex in reg["exercise"]} and entry["why"], entry["target"]
+
+
+def test_no_line_of_a_fast_path_remains_in_the_student_edition(real_edition):
+    reg = student.load_registry()
+    leaks = student.fast_path_lines(ROOT, reg)
+    assert any("jcbb_search(" in line for line in leaks)            # the compiled search's call is one of them
+    assert student.self_check(real_edition, ROOT, reg) == []
+
+
+def _run_in(tree, code):
+    """Run ``code`` with the student tree's helpers (a fresh interpreter: this one imported the answer key's)."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    out = subprocess.run([sys.executable, "-W", "error", "-c", textwrap.dedent(code)], cwd=str(tree), env=env,
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+STOPS = """
+    import json
+    import numpy as np
+    from helpers.association.compatibility import individual_compatibility_matrix, lab_test_fixture
+    from helpers.association.jcbb import jcbb
+    from helpers.association.scenarios import range_bearing_scenario
+    from helpers.association.snn import snn
+    from helpers.exercises import ExerciseNotImplemented
+    fx, sc = lab_test_fixture(), range_bearing_scenario(seed=3, n_landmarks=40, n_visible=8, n_clutter=3)
+    calls = {"jcbb": lambda: jcbb(sc.density, sc.Y), "jcbb_trace": lambda: jcbb(sc.density, sc.Y, trace=True),
+             "matrix": lambda: individual_compatibility_matrix(fx["Y13"], fx["density_3"]),
+             "snn": lambda: snn(fx["density_3"], fx["Y13"], fx["sU"])}
+    out = {}
+    for name, call in calls.items():
+        try:
+            call()
+            out[name] = "returned"
+        except ExerciseNotImplemented as err:
+            out[name] = err.exercise
+    try:
+        jcbb(sc.density, sc.Y, max_nodes=0)
+    except ValueError as err:
+        out["bad_input"] = str(err)
+    print(json.dumps(out))
+"""
+
+
+def test_fast_paths_stop_at_the_exercise_in_a_fresh_student_edition(real_edition):
+    out = _run_in(real_edition, STOPS)
+    assert out["jcbb"] == out["jcbb_trace"] == "l09_jcbb"
+    assert out["matrix"] == out["snn"] == "lab8_2a_individual_compatibility"
+    assert out["bad_input"].startswith("max_nodes")                # checked before the student's code runs
+
+
+RUNS = """
+    import json
+    import numpy as np
+    from helpers.association.compatibility import individual_compatibility_matrix, lab_test_fixture
+    from helpers.association.jcbb import TRACE_BEST, TRACE_EXPANDED, jcbb
+    from helpers.association.scenarios import range_bearing_scenario
+    from helpers.association.snn import snn
+    from helpers.exercises import ExerciseNotImplemented
+    fx, sc = lab_test_fixture(), range_bearing_scenario(seed=3, n_landmarks=40, n_visible=8, n_clutter=3)
+
+
+    def matrix():
+        d2, ok = individual_compatibility_matrix(fx["Y13"], fx["density_3"])
+        return {"d2": d2.tolist(), "ok": ok.tolist()}
+
+
+    def surprisal_nn():
+        idx, s = snn(fx["density_3"], fx["Y13"], fx["sU"])
+        far, s_far = snn(fx["density_3"], fx["Y13"] + 1e4, fx["sU"])       # no feature near any landmark
+        return [idx.tolist(), s, far.tolist(), s_far]
+
+
+    def search():
+        res = jcbb(sc.density, sc.Y, trace=True)
+        tr = res.stats["trace"]
+        return {"idx": res.idx.tolist(), "algorithm": res.algorithm, "nodes": res.stats["nodes"],
+                "expanded": int(np.isin(tr.status, [TRACE_EXPANDED, TRACE_BEST]).sum()),
+                "parents_first": bool(np.all(tr.parent[1:] < np.arange(1, tr.parent.size))),
+                "root": [int(tr.parent[0]), int(tr.level[0])]}
+
+
+    out = {}
+    for name, call in (("matrix", matrix), ("snn", surprisal_nn), ("jcbb", search)):
+        try:
+            out[name] = call()
+        except ExerciseNotImplemented as err:
+            out[name] = err.exercise
+    print(json.dumps(out))
+"""
+
+
+def test_copied_solutions_run_in_the_fast_paths(real_edition, tmp_path):
+    """The "runs on the student's code" property: with the answer key's body of an exercise copied into the
+    student tree, the fast paths built on it give the answer key's results, and only those."""
+    from helpers.association.compatibility import individual_compatibility_matrix, lab_test_fixture
+    from helpers.association.jcbb import jcbb
+    from helpers.association.scenarios import range_bearing_scenario
+    from helpers.association.snn import snn
+
+    fx, sc = lab_test_fixture(), range_bearing_scenario(seed=3, n_landmarks=40, n_visible=8, n_clutter=3)
+    d2, ok = individual_compatibility_matrix(fx["Y13"], fx["density_3"])
+    tree = tmp_path / "student"
+    shutil.copytree(real_edition, tree)
+    student.copy_solution(tree, "lab8_2a_individual_compatibility")
+    out = _run_in(tree, RUNS)
+    assert out["matrix"] == {"d2": d2.tolist(), "ok": ok.tolist()}     # the student's gate, the answer key's result
+    assert out["snn"] == "lab8_2c_joint_compatibility" and out["jcbb"] == "l09_jcbb"
+    for name in ("lab8_2c_joint_compatibility", "l09_jcbb"):
+        student.copy_solution(tree, name)
+    out = _run_in(tree, RUNS)
+    idx, s = snn(fx["density_3"], fx["Y13"], fx["sU"])
+    far, s_far = snn(fx["density_3"], fx["Y13"] + 1e4, fx["sU"])
+    assert out["snn"][0] == idx.tolist() and out["snn"][1] == pytest.approx(s, rel=1e-12)
+    assert out["snn"][2] == far.tolist() == [-1, -1, -1] and out["snn"][3] == pytest.approx(s_far, rel=1e-12)
+    search = out["jcbb"]
+    assert search["idx"] == jcbb(sc.density, sc.Y).idx.tolist() and search["algorithm"] == "jcbb"
+    assert search["expanded"] == search["nodes"] and search["parents_first"] and search["root"] == [-1, -1]
 
 
 def test_exercise_module_imports_nothing_from_helpers():

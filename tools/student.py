@@ -9,8 +9,10 @@ tree (``git ls-files``; outside a git checkout a walk that skips .venv, build, f
 
 1. replaces each target's body (found with ``ast``; decorators, signature and docstring kept) by
    ``raise ExerciseNotImplemented("<name>", "EXERCISES.md, section <name>")``;
-2. applies the registry's ``rewrite`` entries (fast paths routed to the student's reference) and ``redact``
-   entries (text blocks that show a solution), and removes the answer-key-only paths;
+2. applies the registry's ``rewrite`` entries (fast paths routed to the student's reference), ``redact``
+   entries (text blocks that show a solution or describe a removed fast path) and ``notebook_cell`` entries
+   (notebook cells about a removed fast path), removes the answer-key-only paths and checks that every ``kept``
+   entry (a function close to an exercise that stays, with the reason) still names a function;
 3. strips notebook outputs except the kept ones, adds a cell naming each notebook's exercises and the import of
    ``helpers.exercises`` (short messages) to the first code cell;
 4. writes EXERCISES.md and the student README, then self-checks: every target's body is the stub (compared as
@@ -34,7 +36,7 @@ REGISTRY = "tools/exercises.toml"
 SKIP_DIRS = {".venv", "build", "figures", ".git", "__pycache__", ".pytest_cache", ".hypothesis",
              ".ipynb_checkpoints"}
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from student_docs import write_docs  # noqa: E402  (EXERCISES.md, the student README, the notebooks)
+from student_docs import lines_of, write_docs  # noqa: E402  (EXERCISES.md, the student README, the notebooks)
 
 IMPORT_LINE = "from helpers.exercises import ExerciseNotImplemented  # student edition: exercise stubs raise it"
 # helpers.graph may import only itself and the bottom layer (tests/test_layers.py); helpers.exercises imports
@@ -233,6 +235,32 @@ def redact(dest: pathlib.Path, entry: dict) -> None:
     path.write_text("".join(lines), encoding="utf-8")
 
 
+def replace_notebook_cells(dest: pathlib.Path, reg: dict) -> None:
+    """The registry's ``notebook_cell`` entries: the source of the cell with that id replaced (outputs are
+    stripped later with the others)."""
+    for entry in reg["edition"].get("notebook_cell", []):
+        path = dest / entry["notebook"]
+        if not path.exists():
+            raise BuildError("notebook_cell: no notebook %s" % entry["notebook"])
+        nb = json.loads(path.read_text(encoding="utf-8"))
+        cells = [c for c in nb.get("cells", []) if c.get("id") == entry["cell"]]
+        if len(cells) != 1:
+            raise BuildError("notebook_cell: %s has %d cells with id %r" % (entry["notebook"], len(cells), entry["cell"]))
+        cells[0]["source"] = lines_of(entry["source"].strip("\n"))
+        path.write_text(json.dumps(nb, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
+
+
+def check_kept(root: pathlib.Path, reg: dict) -> None:
+    """Every ``kept`` entry names an existing function of the answer key and an exercise of the registry."""
+    names = {ex["name"] for ex in reg["exercise"]}
+    for entry in reg["edition"].get("kept", []):
+        module, qualname = split_target(entry["target"])
+        if find_function(ast.parse(module_path(root, module).read_text(encoding="utf-8")), qualname) is None:
+            raise BuildError("kept: %s names no function (update tools/exercises.toml)" % entry["target"])
+        if entry.get("exercise") not in names or not entry.get("why"):
+            raise BuildError("kept: %s needs an exercise of the registry and a why" % entry["target"])
+
+
 def stub_targets(dest: pathlib.Path, reg: dict) -> None:
     for ex in reg["exercise"]:
         for target in ex["targets"]:
@@ -245,12 +273,14 @@ def stub_targets(dest: pathlib.Path, reg: dict) -> None:
         replace_body(module_path(dest, module), qualname, entry["body"])
     for entry in reg["edition"].get("redact", []):
         redact(dest, entry)
+    replace_notebook_cells(dest, reg)
 
 
 def build(dest=None, root=ROOT, quiet=False) -> pathlib.Path:
     root = pathlib.Path(root)
     dest = pathlib.Path(dest) if dest else root / "build" / "student"
     reg = load_registry(root)
+    check_kept(root, reg)
     copied = copy_tree(root, dest, reg["edition"].get("remove", []))
     stub_targets(dest, reg)
     write_docs(root, dest, reg)
@@ -277,6 +307,29 @@ def solution_lines(root: pathlib.Path, reg: dict) -> dict:
                 s = ln.strip()
                 if len(s) >= MIN_LEAK_CHARS and s not in common:
                     out.setdefault(s, ex["name"])
+    return out
+
+
+def fast_path_lines(root: pathlib.Path, reg: dict) -> dict:
+    """{stripped line: "fast path <where>"} for the distinctive lines of the answer key's fast paths: the original
+    bodies of the ``rewrite`` targets and the removed modules under helpers/ (e.g. the compiled JCBB search), with
+    the same rule as :func:`solution_lines` (long enough, not a line of the code the edition keeps, nor of the
+    registry's own replacement texts: an argument check or a constant a rewrite keeps on purpose)."""
+    out = {}
+    edition = reg["edition"]
+    texts = [e["body"] for e in edition.get("rewrite", [])] + [e["text"] for e in edition.get("redact", [])]
+    common = kept_code_lines(root, reg) | {ln.strip() for t in texts for ln in t.splitlines()}
+    sources = [("fast path " + r["target"], function_body_source(module_path(root, split_target(r["target"])[0]),
+                                                                  split_target(r["target"])[1]))
+               for r in reg["edition"].get("rewrite", [])]
+    sources += [("fast path " + rel, (root / rel).read_text(encoding="utf-8"))
+                for rel in reg["edition"].get("remove", [])
+                if rel.startswith("helpers/") and rel.endswith(".py") and (root / rel).is_file()]
+    for label, text in sources:
+        for ln in text.splitlines():
+            s = ln.strip()
+            if len(s) >= MIN_LEAK_CHARS and s not in common:
+                out.setdefault(s, label)
     return out
 
 
@@ -318,7 +371,9 @@ def self_check(dest: pathlib.Path, root: pathlib.Path, reg: dict) -> list:
             module, qualname = split_target(target)
             if body_dump(module_path(dest, module), qualname) != stub:
                 problems.append("%s: the body of %s is not the stub" % (ex["name"], target))
-    leaks = solution_lines(root, reg)
+    leaks = {}
+    leaks.update((ln, "the " + where) for ln, where in fast_path_lines(root, reg).items())
+    leaks.update((ln, "the solution of " + ex) for ln, ex in solution_lines(root, reg).items())
     for path in sorted(dest.rglob("*")):
         if path.suffix not in (".py", ".ipynb") or any(p in SKIP_DIRS for p in path.relative_to(dest).parts):
             continue
@@ -328,7 +383,7 @@ def self_check(dest: pathlib.Path, root: pathlib.Path, reg: dict) -> list:
         for n, ln in enumerate(text.splitlines(), 1):
             ex = leaks.get(ln.strip())
             if ex is not None:
-                problems.append("%s:%d shows a line of the solution of %s: %s"
+                problems.append("%s:%d shows a line of %s: %s"
                                 % (path.relative_to(dest).as_posix(), n, ex, ln.strip()[:80]))
     return problems
 

@@ -41,6 +41,9 @@ def exercises_markdown(reg: dict) -> str:
              "`make grade` alone grades every exercise and ends with `exercises: N passed, M failed` and "
              "`other tests: K passed, L failed` (the rest of the workbook's tests; they pass from the start). "
              "Where an exercise's tests also call other exercises, those are listed under *Needs*: do them first.",
+             "", "Where the answer key has a fast version of an exercise (vectorised, compiled or batched), this "
+             "edition calls your function in its place, so every notebook and every other function that uses it "
+             "runs your code: `tools/exercises.toml` lists these under `[[edition.rewrite]]`, each with the reason.",
              "", "| exercise | course document, part |", "|---|---|"]
     for ex in reg["exercise"]:
         lines.append("| [`%s`](#%s) | %s |" % (ex["name"], ex["name"], ex["source"]))
@@ -95,20 +98,21 @@ def student_notebook(nb: dict, exercises, keep) -> dict:
     if first_code is not None:
         src = "".join(first_code.get("source", []))
         if NOTEBOOK_IMPORT not in src:
-            first_code["source"] = _lines(NOTEBOOK_IMPORT + "\n" + src)
+            first_code["source"] = lines_of(NOTEBOOK_IMPORT + "\n" + src)
     if exercises and not any(c.get("id") == EXERCISE_CELL_ID for c in nb["cells"]):
         text = ["**Student edition.** This notebook runs your code for these exercises (tasks in `EXERCISES.md`):", ""]
         text += ["- `%s` (%s): %s" % (ex["name"], ex["source"], "; ".join(_target_text(t) for t in ex["targets"]))
                  for ex in exercises]
         text += ["", "A cell that needs an exercise you have not written yet stops with a short message naming it. "
                      "Check an exercise with `make grade EX=<name>`."]
-        cell = {"cell_type": "markdown", "id": EXERCISE_CELL_ID, "metadata": {}, "source": _lines("\n".join(text))}
+        cell = {"cell_type": "markdown", "id": EXERCISE_CELL_ID, "metadata": {}, "source": lines_of("\n".join(text))}
         at = 1 if nb["cells"] and nb["cells"][0].get("cell_type") == "markdown" else 0
         nb["cells"].insert(at, cell)
     return nb
 
 
-def _lines(text: str):
+def lines_of(text: str):
+    """A notebook cell's source list (one string per line, newlines kept) from text."""
     parts = text.split("\n")
     return [p + "\n" for p in parts[:-1]] + ([parts[-1]] if parts[-1] else [])
 

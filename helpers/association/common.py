@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from .compatibility import individual_compatibility_matrix
+from .compatibility import individual_sq_distances
 from ..gaussian import Gaussian, chi2inv, confidence_level
 from ..validation import float_array, integer
 
@@ -93,7 +93,7 @@ class AssociationProblem:
     mu (n, d) predicted means; P (d·n, d·n) joint covariance; Y (d, m); blocks (n, d, d) the marginal
     covariances P_kk; ic_d2 (n, m) individual squared Mahalanobis distances d²_ki = ν_kiᵀ P_kk⁻¹ ν_ki;
     logdet (n,) log det(2π P_kk); n_sigma and the IC threshold χ²_d(c). For d = 2 the individual distances
-    come from ``compatibility.individual_compatibility_matrix`` (the lab's gate); other d use the same
+    come from ``compatibility.individual_sq_distances`` (the lab's distances); other d use the same
     formula with batched Cholesky factors.
     """
 
@@ -163,8 +163,8 @@ def prepare(density, Y, n_sigma: float = 3.0) -> AssociationProblem:
                          "(add measurement noise to the density)") from None
     logdet = 2.0 * np.sum(np.log(np.diagonal(Lb, axis1=1, axis2=2)), axis=1) + d * np.log(2.0 * np.pi)
     if m and d == 2:
-        # the lab's vectorised individual gate (compatibility module): d2 (m, n) from the 2×2 marginals
-        ic_d2 = np.ascontiguousarray(individual_compatibility_matrix(Y, density, n_sigma)[0].T)
+        # the lab's vectorised individual distances (compatibility module): d2 (m, n) from the 2×2 marginals
+        ic_d2 = np.ascontiguousarray(individual_sq_distances(Y, density).T)
     elif m:
         nu = Y.T[None, :, :] - mu[:, None, :]                         # (n, m, d) innovations ν_ki
         Linv = np.linalg.inv(Lb)                                       # (n, d, d), L_k⁻¹

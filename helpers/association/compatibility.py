@@ -29,6 +29,7 @@ __all__ = [
     "check_bundle_density",
     "individual_compatibility",
     "individual_compatibility_matrix",
+    "individual_sq_distances",
     "landmark_marginals",
     "joint_compatibility",
     "uniform_surprisal",
@@ -66,23 +67,31 @@ def landmark_marginals(density: Gaussian):
     return density.mean.reshape(n, 2), R
 
 
-def individual_compatibility_matrix(Y, density: Gaussian, n_sigma: float = 3.0):
-    """Squared Mahalanobis distances and the individual gate for every (feature, landmark) pair.
-
-    Returns ``(d2, compatible)``, both (m, n): d2[i, j] = w_ijᵀ w_ij, compatible = d2 ≤ χ²_2(c).
-    Vectorised: one batched QR for the n marginals, closed-form 2 × 2 triangular solves for all m·n pairs.
-    """
+def individual_sq_distances(Y, density: Gaussian):
+    """Squared Mahalanobis distance d2[i, j] = w_ijᵀ w_ij (S_jᵀ w_ij = y_i − μ_j) of every (feature, landmark)
+    pair, shape (m, n): one batched QR for the n marginals, closed-form 2 × 2 triangular solves for all m·n
+    pairs. The distances only; the gate is :func:`individual_compatibility`. ``prepare`` of the L09
+    algorithms takes its 2-D distances from here."""
     Y = feature_columns(float_array(Y, "Y"), allow_empty=False)
     mu, S = landmark_marginals(density)
     a, b, c = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
     if np.any(a == 0) or np.any(c == 0):
         raise ValueError("density has a landmark with a singular 2 × 2 marginal; its gate is undefined")
-    threshold = chi2inv(confidence_level(n_sigma), 2)
     D = Y.T[:, None, :] - mu[None, :, :]  # (m, n, 2)
     # S_jᵀ w = d with S_jᵀ = [[a, 0], [b, c]]
     w1 = D[..., 0] / a
     w2 = (D[..., 1] - b * w1) / c
-    d2 = w1 * w1 + w2 * w2
+    return w1 * w1 + w2 * w2
+
+
+def individual_compatibility_matrix(Y, density: Gaussian, n_sigma: float = 3.0):
+    """Squared Mahalanobis distances and the individual gate for every (feature, landmark) pair.
+
+    Returns ``(d2, compatible)``, both (m, n): d2 from :func:`individual_sq_distances` and compatible[i, j] =
+    ``individual_compatibility(i, j, Y, density, n_sigma)``, the gate of eq 12 for every pair.
+    """
+    d2 = individual_sq_distances(Y, density)
+    threshold = chi2inv(confidence_level(n_sigma), 2)
     return d2, d2 <= threshold
 
 
