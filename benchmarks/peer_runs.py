@@ -2,7 +2,12 @@
 
 Each ``run_*`` returns a dict: solver, time (wall time of the optimisation call only; loading is not timed),
 iters, chi2 (GTSAM: 2 × error), hist (χ² per iteration, starting with the initial value), marg_time (all pose
-covariances), cov {pose id: 3×3 world-frame (x, y, ψ) covariance}, est {pose id: [x, y, ψ]}.
+covariances), cov {pose id: 3×3 world-frame (x, y, ψ) covariance}, est {pose id: [x, y, ψ]}; helpers' run also
+build_time (``initialize_optimization()``: structure, ordering and symbolic analysis — the work GTSAM's timed
+optimiser construction and iterations include) and backend (the linear solver's backend for the pattern).
+helpers and GTSAM also give cpu_time (and helpers build_cpu_time): the process CPU time of the same regions — both
+run single-threaded (GTSAM's wheel has no TBB; OPENBLAS_NUM_THREADS=1), so on a shared machine the CPU-time ratio
+is the steadier one.
 
 GTSAM's Pose2 covariance lives in the body-frame tangent space; it is rotated to the world-frame additive
 parameterisation of VertexSE2 (Σ_w = M Σ_b Mᵀ, M = blockdiag(R(ψ), 1)) before any comparison.
@@ -62,19 +67,24 @@ def warm_up():
             g.compute_marginals()
 
 
-def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2, data=None):
-    """Load and solve a dataset with helpers.graph; time the optimise call and all pose marginals.
+def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2, data=None, backend="auto"):
+    """Load and solve a dataset with helpers.graph; time the structure build, the optimise call and all pose
+    marginals.
 
-    ``data``: the parsed dataset (``datasets.read_dataset(name)``) when the caller already has it."""
+    ``data``: the parsed dataset (``datasets.read_dataset(name)``) when the caller already has it; ``backend``:
+    the ``LDLSolver`` backend ("auto", "qdldl" — the solver before CHOLMOD was added —, "cholmod")."""
     if data is None:
         data = datasets.read_dataset(name)
     opt = datasets.build_optimizer(data, pose_class=pose_class)
+    opt.linear_solver.backend = backend
+    t, c = time.perf_counter(), time.process_time()
     opt.initialize_optimization()
+    t_build, c_build = time.perf_counter() - t, time.process_time() - c
     chi2_0 = opt.chi2()
     est0 = {v.id: v.estimate for v in opt.vertices() if isinstance(v, VertexSE2)}
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     chi2 = opt.optimize(iters, algorithm=algorithm)
-    t_opt = time.perf_counter() - t
+    t_opt, c_opt = time.perf_counter() - t, time.process_time() - c
     poses = [v for v in opt.vertices() if isinstance(v, VertexSE2)]
     t = time.perf_counter()
     marg = opt.compute_marginals(poses)
@@ -87,7 +97,8 @@ def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2, data=None
     points = {v.id: v.estimate for v in opt.vertices() if not isinstance(v, VertexSE2)}
     return {"solver": "helpers", "config": f"{algorithm}, {pose_class.__name__}", "time": t_opt, "iters": opt.iterations, "chi2": chi2, "marg_time": t_marg,
             "cov": cov, "est": est, "est0": est0, "points": points,
-            "hist": [chi2_0] + opt.chi2_history}
+            "hist": [chi2_0] + opt.chi2_history, "build_time": t_build, "backend": opt.linear_solver.active_backend,
+            "cpu_time": c_opt, "build_cpu_time": c_build}
 
 
 def run_gtsam(name, marginal_every=1):
@@ -96,22 +107,24 @@ def run_gtsam(name, marginal_every=1):
     graph, initial = load2d(name)
     graph.add(gtsam.PriorFactorPose2(0, initial.atPose2(0), gtsam.noiseModel.Isotropic.Sigma(3, 1e-6)))
     params = gtsam.LevenbergMarquardtParams()
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     optimizer = gtsam.LevenbergMarquardtOptimizer(graph, initial, params)
     hist = [2 * graph.error(initial)]
-    t_hist = 0.0
+    t_hist = c_hist = 0.0
     while True:  # iterate() one step at a time to record χ² per iteration (the recording itself is not timed)
         before = optimizer.error()
         optimizer.iterate()
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         hist.append(2 * optimizer.error())
         t_hist += time.perf_counter() - t0
+        c_hist += time.process_time() - c0
         if optimizer.iterations() >= params.getMaxIterations() or gtsam.checkConvergence(
                 params.getRelativeErrorTol(), params.getAbsoluteErrorTol(), params.getErrorTol(), before,
                 optimizer.error()):
             break
     result = optimizer.values()
     t_opt = time.perf_counter() - t - t_hist
+    c_opt = time.process_time() - c - c_hist
     pose_keys = [k for k in result.keys() if gtsam.Symbol(k).chr() == 0]
     cov, t_marg = {}, float("nan")
     if marginal_every:  # 0: skip the marginals
@@ -130,7 +143,7 @@ def run_gtsam(name, marginal_every=1):
         m[:2, :2] = [[np.cos(psi), -np.sin(psi)], [np.sin(psi), np.cos(psi)]]
         cov[k] = m @ c @ m.T
     return {"solver": "GTSAM", "config": "LM defaults", "time": t_opt, "iters": optimizer.iterations(), "chi2": 2 * graph.error(result),
-            "marg_time": t_marg, "cov": cov, "est": est, "hist": hist}
+            "marg_time": t_marg, "cov": cov, "est": est, "hist": hist, "cpu_time": c_opt}
 
 
 def gtsam_marginals_at(name, est, points, marginal_every=1):

@@ -1,10 +1,16 @@
 """helpers.graph against g2o (g2opy) and GTSAM on W10000 and Victoria Park, in one process.
 
-    .venv/bin/python benchmarks/peers.py
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/peers.py [--backend auto|qdldl|cholmod]
 
 Prints, per dataset and solver: wall time of the optimisation call, iterations, final χ² (GTSAM: 2 × error), the
 time for all pose covariances and their agreement with GTSAM (max relative Frobenius difference), and the ratios
-helpers / faster peer. Solvers and caveats: see benchmarks/peer_runs.py. helpers runs GTSAM's own strategy on both
+helpers / faster peer. helpers' structure build (``initialize_optimization()``: index arrays, Hessian pattern,
+ordering and symbolic factorisation) is timed too and reported both ways: the optimisation alone (comparable with
+the earlier runs in RESULTS.md) and build + optimisation against GTSAM, whose timed optimiser construction and
+iterations include its own ordering and symbolic work (g2o's ``initialize_optimization`` is not timed, so the
+ratio with build is against GTSAM). Both ratios are printed for wall time and for process CPU time (helpers and
+GTSAM run single-threaded; on a shared machine the CPU-time ratio is the steadier). ``--backend`` sets helpers' linear solver (``LDLSolver.backend``): "auto"
+(default: CHOLMOD where it pays, when cvxopt is installed), "qdldl" (the solver before CHOLMOD was added), "cholmod". Solvers and caveats: see benchmarks/peer_runs.py. helpers runs GTSAM's own strategy on both
 datasets, so the comparison is like for like: algorithm="lm-gtsam" (GTSAM's default LM schedule and stopping rule)
 with VertexSE2Exp (GTSAM's Pose2 exponential-map update). The coursework's GN reaches the same W10000 optimum in
 11 iterations instead of 8 (notebook 09 shows it); on Victoria Park the coursework's GN/LM end in a worse local
@@ -21,13 +27,15 @@ from peer_runs import agreement, gtsam_marginals_at, run_g2o, run_gtsam, run_hel
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.parse_args()
+    parser.add_argument("--backend", choices=("auto", "qdldl", "cholmod"), default="auto",
+                        help="helpers' LDLSolver backend (default auto)")
+    args = parser.parse_args()
     warm_up()
     rows = []
     runs = [("w10000", "lm-gtsam", 100, VertexSE2Exp, ("GTSAM", "g2o")),
             ("victoria_park", "lm-gtsam", 100, VertexSE2Exp, ("GTSAM",))]
     for name, alg, iters, pose_class, peers in runs:
-        res = [run_helpers(name, alg, iters, pose_class), run_gtsam(name)]
+        res = [run_helpers(name, alg, iters, pose_class, backend=args.backend), run_gtsam(name)]
         if "g2o" in peers:
             res.append(run_g2o(name))
         ref = res[1]["cov"]
@@ -44,6 +52,13 @@ def main():
         print(f"ratios: time helpers/{fastest['solver']} = {h['time'] / fastest['time']:.2f}, "
               f"marginals helpers/{fastest_m['solver']} = {h['marg_time'] / fastest_m['marg_time']:.2f}, "
               f"chi2 helpers/GTSAM = {h['chi2'] / best:.8f}")
+        g = res[1]
+        print(f"helpers' structure build {h['build_time']:.3f} s (linear solver: {h['backend']}); build + "
+              f"optimisation {h['build_time'] + h['time']:.3f} s; ratio with build helpers/GTSAM = "
+              f"{(h['build_time'] + h['time']) / g['time']:.2f}")
+        print(f"CPU time: helpers build {h['build_cpu_time']:.3f} s + optimisation {h['cpu_time']:.3f} s, GTSAM "
+              f"{g['cpu_time']:.3f} s; ratios helpers/GTSAM {h['cpu_time'] / g['cpu_time']:.2f} without build, "
+              f"{(h['build_cpu_time'] + h['cpu_time']) / g['cpu_time']:.2f} with build")
         same = agreement(h["cov"], gtsam_marginals_at(name, h["est"], h["points"]))
         print(f"pose covariances vs GTSAM Marginals evaluated at helpers' solution: max rel. difference {same:.2e}")
         rows.append((name, res))

@@ -11,7 +11,7 @@ The class is a thin front over modules with one job each:
     algorithms   Gauss–Newton, the coursework's LM, GTSAM's LM schedule, with their parameters dataclasses
     algorithms_default  the default of ``optimize``: LM with GTSAM's λ schedule, SE(2) poses moved along arcs,
                  a window stopping rule (``DefaultParams``)
-    linear       the Hessian pattern and the LDLᵀ solver (qdldl)
+    linear       the Hessian pattern and the LDLᵀ solver (qdldl; CHOLMOD via cvxopt where it pays)
     marginals    blocks of H⁻¹ by the Takahashi recursion on the LDLᵀ factor
 
 The vertices always hold the accepted state when ``optimize`` returns, and also when it raises (any exception or

@@ -1,0 +1,126 @@
+"""The optional CHOLMOD backend of ``LDLSolver``: supernodal Cholesky factorisation through ``cvxopt.cholmod``.
+
+Why. On Hessians whose factor has dense columns (many loop closures: W10000) CHOLMOD's supernodal LLᵀ, which
+works on dense blocks with BLAS, refactorises in about 0.6× qdldl's time; on the sparser graphs (W20000, Victoria
+Park, the DriveBot maps) qdldl's simplicial LDLᵀ is faster (1.2–2×) — ``benchmarks/factorisation.py``,
+``benchmarks/RESULTS.md``. ``prefers_cholmod`` decides per pattern from the column counts of qdldl's factor with
+CHOLMOD's own rule for supernodal against simplicial: supernodal pays when the factorisation's flops per non-zero
+of L reach ``SUPERNODAL_SWITCH`` (CHOLMOD's default ``supernodal_switch``, 40; the measured crossover lies at
+≈ 30), and the factorisation is not tiny (``MIN_FLOPS``).
+
+Availability. cvxopt is an optional dependency (environment markers in environment.txt): it has wheels for
+Windows, Linux and macOS arm64 up to CPython 3.12, none for macOS arm64 + CPython 3.13, where ``AVAILABLE`` is
+False and everything runs on qdldl.
+
+Use. ``CholmodFactor(pattern, perm)`` builds the cvxopt matrix with H's pattern and CHOLMOD's symbolic analysis
+with the given fill-reducing permutation (qdldl's AMD ordering, so both backends have the same fill) once per
+pattern; ``factor(data)`` refactorises numerically (False when CHOLMOD finds the matrix not positive definite:
+it raises ArithmeticError), ``solve(rhs)`` returns H⁻¹ rhs. CHOLMOD's options live in a module-level dict of
+cvxopt that every call reads; the calls here set their own options and restore the caller's afterwards.
+"""
+
+import numpy as np
+
+try:
+    import cvxopt
+    from cvxopt import cholmod as _cholmod
+except ImportError:  # optional: no wheel on macOS arm64 + CPython 3.13
+    cvxopt = None
+    _cholmod = None
+
+__all__ = ["AVAILABLE", "SUPERNODAL_SWITCH", "MIN_FLOPS", "factor_statistics", "prefers_cholmod", "CholmodFactor"]
+
+#: True when cvxopt (and with it CHOLMOD) can be imported
+AVAILABLE = _cholmod is not None
+#: flops / nnz(L) from which the supernodal factorisation is used (CHOLMOD's default supernodal_switch)
+SUPERNODAL_SWITCH = 40.0
+#: smaller factorisations stay on qdldl (the cost of the calls dominates there)
+MIN_FLOPS = 1e6
+#: the options of every CHOLMOD call made here: supernodal LLᵀ, the given ordering only, postordered
+_OPTIONS = {"supernodal": 2, "nmethods": 1, "postorder": True}
+
+
+def factor_statistics(column_counts):
+    """(nnz(L), flops) of a Cholesky factorisation from the non-zeros per column of L (diagonal included):
+    flops = Σ c_j² (the multiply–adds of the left-looking update, up to a constant)."""
+    c = np.asarray(column_counts, dtype=float)
+    return float(c.sum()), float(np.dot(c, c))
+
+
+def prefers_cholmod(column_counts):
+    """Whether CHOLMOD's supernodal factorisation is expected to beat qdldl for a factor with these column
+    counts (module docstring); False when cvxopt is not installed."""
+    if not AVAILABLE:
+        return False
+    nnz, flops = factor_statistics(column_counts)
+    return flops >= MIN_FLOPS and flops >= SUPERNODAL_SWITCH * nnz
+
+
+def _call(function, *args, **kwargs):
+    """Call a cvxopt.cholmod function with this module's options (the caller's options are restored after)."""
+    saved = dict(_cholmod.options)
+    _cholmod.options.clear()
+    _cholmod.options.update(_OPTIONS)
+    try:
+        return function(*args, **kwargs)
+    finally:
+        _cholmod.options.clear()
+        _cholmod.options.update(saved)
+
+
+class CholmodFactor:
+    """CHOLMOD's factorisation of matrices with one ``HessianPattern`` (upper triangle, CSC) and one ordering."""
+
+    def __init__(self, pattern, perm):
+        if not AVAILABLE:
+            raise ImportError("the CHOLMOD backend needs cvxopt, which is not installed")
+        n = pattern.n
+        perm = np.asarray(perm, dtype=np.int64)
+        if perm.shape != (n,) or not np.array_equal(np.sort(perm), np.arange(n)):
+            raise ValueError(f"CholmodFactor: perm must be a permutation of range({n})")
+        cols = np.repeat(np.arange(n, dtype=np.int64), np.diff(pattern.indptr))
+        # cvxopt orders the entries by column, then row: the same CSC order as the pattern (np.unique keys)
+        self._values = cvxopt.matrix(np.zeros(pattern.nnz))
+        self._matrix = cvxopt.spmatrix(1.0, cvxopt.matrix(pattern.indices.astype(np.int64), tc="i"),
+                                       cvxopt.matrix(cols, tc="i"), (n, n))
+        self._view = np.asarray(self._values).reshape(-1)   # writable view of the value buffer
+        self._rhs = cvxopt.matrix(np.zeros(n))
+        self._rhs_view = np.asarray(self._rhs).reshape(-1)
+        self._factor = _call(_cholmod.symbolic, self._matrix, p=cvxopt.matrix(perm, tc="i"), uplo="U")
+        self.n = n
+        self.ok = False
+
+    @property
+    def values(self):
+        """The upper-triangle CSC values of the last factorised matrix (a view: read only)."""
+        out = self._view.view()
+        out.flags.writeable = False
+        return out
+
+    def factor(self, data, check_pivots=True):
+        """Numeric factorisation of the matrix with CSC values ``data``; returns (and keeps in ``ok``) whether
+        it is positive definite.
+
+        CHOLMOD raises ArithmeticError at a pivot ≤ 0; ``check_pivots`` also requires every diagonal entry of L
+        to be finite and > 0 (the supernodal factorisation lets a NaN or inf pass, as qdldl does; the caller's
+        check on qdldl's D catches it there)."""
+        self._view[:] = data
+        self._matrix.V = self._values
+        try:
+            _call(_cholmod.numeric, self._matrix, self._factor)
+        except ArithmeticError:  # CHOLMOD_NOT_POSDEF
+            self.ok = False
+            return self.ok
+        self.ok = True
+        if check_pivots:
+            diag = np.asarray(_call(_cholmod.diag, self._factor)).reshape(-1)
+            self.ok = bool(np.all(np.isfinite(diag)) and np.all(diag > 0.0))
+        return self.ok
+
+    def solve(self, rhs):
+        """H⁻¹ rhs with the last positive definite factorisation."""
+        if not self.ok:
+            raise ArithmeticError("CholmodFactor.solve: the last factorisation failed (not positive definite)")
+        self._rhs_view[:] = rhs
+        _call(_cholmod.solve, self._factor, self._rhs)
+        return self._rhs_view.copy()
