@@ -20,6 +20,8 @@ In the student edition (a tree with EXERCISES.md, written by ``make student``) `
 fails only when a test outside the exercises fails, then nbval in lax mode over the notebooks whose exercises
 all pass; in the answer key, with ``CI=true``, ``test`` ends with the student-edition check
 (``tools/student_check.py``).
+The unit tests and the notebook passes run on one pytest-xdist worker per core (at most 4; ``WORKBOOK_JOBS=N``
+sets the number, 1 runs them in one process).
 This file keeps to syntax that old Pythons can parse, so that they reach the version check.
 """
 import hashlib
@@ -139,10 +141,45 @@ def tool_env(extra=None):
     return env
 
 
+def parallel_args():
+    """pytest-xdist workers: one per core, at most 4 (``WORKBOOK_JOBS=N`` overrides; 1 runs in one process)."""
+    jobs = os.environ.get("WORKBOOK_JOBS", "").strip()
+    if jobs and not jobs.isdigit():
+        raise TaskError("WORKBOOK_JOBS must be a whole number of test workers (1 = no parallel run), got %r" % jobs)
+    n = int(jobs) if jobs else min(os.cpu_count() or 1, 4)
+    return ["-n", str(n)] if n > 1 else []
+
+
+def stored_run_seconds(path):
+    """Seconds the notebook's cells took when its outputs were stored (nbclient's per-cell timing), 0 if unknown."""
+    import datetime
+    total = 0.0
+    try:
+        cells = json.loads(path.read_text(encoding="utf-8"))["cells"]
+    except (OSError, ValueError, KeyError):
+        return total
+    for cell in cells:
+        timing = cell.get("metadata", {}).get("execution", {})
+        try:
+            start, end = (datetime.datetime.fromisoformat(timing[k].replace("Z", "+00:00"))
+                          for k in ("iopub.execute_input", "shell.execute_reply"))
+        except (KeyError, ValueError, AttributeError):
+            continue
+        total += max((end - start).total_seconds(), 0.0)
+    return total
+
+
 def nbval(env=None):
+    """Strict nbval over every notebook; with several workers each notebook runs whole in one kernel
+    (``--dist loadscope``), longest first so that the workers finish together."""
+    workers = parallel_args()
+    notebooks = sorted((ROOT / "notebooks").glob("*.ipynb"))
+    if workers:
+        notebooks.sort(key=stored_run_seconds, reverse=True)
+        workers += ["--dist", "loadscope", "--no-loadscope-reorder"]
     run([venv_python(), "-m", "pytest", "-W", "error", "-q", "--nbval", "--nbval-current-env",
          "--nbval-sanitize-with", "notebooks/nbval_sanitize.cfg", "--nbval-cell-timeout", "300",
-         "-p", "no:cacheprovider", "notebooks"], env=tool_env(env))
+         "-p", "no:cacheprovider"] + workers + [str(p.relative_to(ROOT)) for p in notebooks], env=tool_env(env))
 
 
 def cpu_passes():
@@ -168,7 +205,7 @@ def test_unit():
     if STUDENT_EDITION:  # unfinished exercises are expected: only the other tests can fail this
         run([venv_python(), "tools/grade.py", "--student-ok", "--status", GRADE_STATUS], env=tool_env())
         return
-    run([venv_python(), "-m", "pytest", "-W", "error", "-q", "tests"], env=tool_env())
+    run([venv_python(), "-m", "pytest", "-W", "error", "-q"] + parallel_args() + ["tests"], env=tool_env())
 
 
 def test_notebooks():
