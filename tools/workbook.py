@@ -179,7 +179,17 @@ def nbval(env=None):
         workers += ["--dist", "loadscope", "--no-loadscope-reorder"]
     run([venv_python(), "-m", "pytest", "-W", "error", "-q", "--nbval", "--nbval-current-env",
          "--nbval-sanitize-with", "notebooks/nbval_sanitize.cfg", "--nbval-cell-timeout", "300",
-         "-p", "no:cacheprovider"] + workers + [str(p.relative_to(ROOT)) for p in notebooks], env=tool_env(env))
+         "-p", "no:cacheprovider"] + workers + [str(p.relative_to(ROOT)) for p in notebooks],
+        env=tool_env(worker_env(workers, env)))
+
+
+def worker_env(workers, env=None):
+    """With several workers, one BLAS thread each (unless set): the workers already use every core."""
+    env = dict(env or {})
+    if workers:
+        for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+            env.setdefault(name, os.environ.get(name, "1"))
+    return env
 
 
 def cpu_passes():
@@ -205,7 +215,9 @@ def test_unit():
     if STUDENT_EDITION:  # unfinished exercises are expected: only the other tests can fail this
         run([venv_python(), "tools/grade.py", "--student-ok", "--status", GRADE_STATUS], env=tool_env())
         return
-    run([venv_python(), "-m", "pytest", "-W", "error", "-q"] + parallel_args() + ["tests"], env=tool_env())
+    workers = parallel_args()
+    run([venv_python(), "-m", "pytest", "-W", "error", "-q"] + workers + ["tests"],
+        env=tool_env(worker_env(workers)))
 
 
 def test_notebooks():
