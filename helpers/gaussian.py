@@ -23,6 +23,7 @@ when the triangular factor they solve with has a zero diagonal entry.
 """
 from __future__ import annotations
 
+import functools
 import numbers
 
 import numpy as np
@@ -42,6 +43,17 @@ def chi2inv(p, nu):
     Equals ``scipy.stats.chi2.ppf(p, nu)``. ``p`` must lie in [0, 1), ``nu`` must be positive.
     Scalars give a float; arrays broadcast.
     """
+    if isinstance(p, numbers.Real) and isinstance(nu, numbers.Real):
+        return _chi2inv_scalar(float(p), float(nu))    # the association gates ask for a few values very often
+    return _chi2inv_array(p, nu)
+
+
+@functools.lru_cache(maxsize=256)
+def _chi2inv_scalar(p: float, nu: float) -> float:
+    return _chi2inv_array(p, nu)
+
+
+def _chi2inv_array(p, nu):
     p_arr = float_array(p, "p")
     nu_arr = float_array(nu, "nu")
     if not np.all(np.isfinite(p_arr)) or np.any(p_arr < 0) or np.any(p_arr >= 1):

@@ -319,3 +319,17 @@ def test_chi2inv_bad_nu_and_normcdf_nan():
         normcdf(np.nan)
     assert chi2inv(0.0, 3) == 0.0
     np.testing.assert_allclose(chi2inv(np.array([0.5, 0.75]), 3), [2.365973884375338, 4.108344935632316])
+
+
+def test_chi2inv_scalar_cache_equals_array_path():
+    """Scalars go through a cache; the value is bit-for-bit the array path's, and bad scalars still raise
+    (a failed call is not cached)."""
+    for p, nu in [(0.95, 2), (0.9973002039367398, 6.0), (np.float64(0.5), np.int64(3)), (0.0, 1)]:
+        first, again = chi2inv(p, nu), chi2inv(p, nu)
+        assert isinstance(first, float) and first == again
+        assert first == float(chi2inv(np.array([p]), np.array([nu]))[0])
+    for _ in range(2):
+        with pytest.raises(ValueError, match="p must lie"):
+            chi2inv(1.0, 2)
+        with pytest.raises(ValueError, match="nu must be positive"):
+            chi2inv(0.5, -1.0)
