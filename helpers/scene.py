@@ -57,7 +57,6 @@ __all__ = [
     "find_board_corners",
     "recover_pose",
     "TEXTURE_WAVELENGTHS",
-    "fiducial_half_size",
     "ChessboardNotFoundError",
 ]
 

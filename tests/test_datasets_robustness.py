@@ -3,7 +3,6 @@ line (or the argument), never a raw error or a silent partial graph. Ends with h
 truncation and corruption of valid files either reads the same graph or raises DatasetFormatError."""
 
 import gzip
-import io
 import pickle
 
 import numpy as np

@@ -49,7 +49,7 @@ Decisions on records that are legal but suspicious (each tested):
 """
 
 from .catalogue import DATASETS, dataset_path, load_dataset, read_dataset
-from .graph_data import GraphData, build_optimizer, initial_values as _initial_values, pose_arrays
+from .graph_data import GraphData, build_optimizer, pose_arrays
 from .records import DatasetFormatError
 from .toro_g2o import read_g2o, read_toro
 from .victoria_park import read_victoria_park
