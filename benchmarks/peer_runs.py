@@ -33,6 +33,7 @@ except ImportError:
     g2o = None
 
 from helpers import datasets
+from helpers.datasets.graph_data import initial_values
 from helpers.recorded_peers import covariance_agreement
 from helpers.graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2, VertexSE2Exp
 
@@ -177,7 +178,7 @@ def run_g2o(name, iters=15, data=None, marginals=True):
         data = datasets.read_dataset(name)
     if any(e[0] != "se2" for e in data.edges):
         raise ValueError(f"g2opy has no range-bearing edge; {name} is not a pose graph")
-    poses, _ = datasets._initial_values(data)
+    poses, _ = initial_values(data)
     opt = g2o.SparseOptimizer()
     opt.set_algorithm(g2o.OptimizationAlgorithmGaussNewton(g2o.BlockSolverSE2(g2o.LinearSolverEigenSE2())))
     first = min(poses)
