@@ -43,6 +43,7 @@ except ImportError:
 
 from helpers.datasets import load_dataset
 from helpers.graph import cholmod_backend
+from helpers.graph.cholmod_backend import pattern_matrix
 
 GRAPHS = ("w100", "w10000", "w20000", "victoria_park", "q2_e")
 LAMBDA = 1e-5
@@ -63,13 +64,6 @@ def damped_hessian(name):
     return pattern, data, system.gradient.copy()
 
 
-def cvx_pattern(pattern, data):
-    cols = np.repeat(np.arange(pattern.n, dtype=np.int64), np.diff(pattern.indptr))
-    return cvxopt.spmatrix(cvxopt.matrix(np.ascontiguousarray(data, dtype=float)),
-                           cvxopt.matrix(pattern.indices.astype(np.int64), tc="i"), cvxopt.matrix(cols, tc="i"),
-                           (pattern.n, pattern.n))
-
-
 def cholmod_options(nmethods=None):
     cholmod.options.clear()
     cholmod.options["supernodal"] = 2
@@ -82,7 +76,7 @@ def variants(pattern, data, rhs):
     upper = pattern.upper(data)
     solver = qdldl.Solver(upper, upper=True)
     perm = np.asarray(solver.factors()[2], dtype=np.int64)
-    a = cvx_pattern(pattern, data)
+    a = pattern_matrix(pattern, data)
     values = cvxopt.matrix(np.ascontiguousarray(data, dtype=float))
     view = np.asarray(values).reshape(-1)
     b = cvxopt.matrix(np.zeros(pattern.n))
@@ -120,7 +114,7 @@ def variants(pattern, data, rhs):
         qdldl.Solver(upper, upper=True)
 
     def pattern_build():
-        cvx_pattern(pattern, data)
+        pattern_matrix(pattern, data)
 
     return {"qdldl build": qdldl_build,
             "qdldl refactor+solve": qdldl_refactor,

@@ -188,7 +188,8 @@ def worker_env(workers, env=None):
     env = dict(env or {})
     if workers:
         for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
-            env.setdefault(name, os.environ.get(name, "1"))
+            if name not in os.environ:
+                env.setdefault(name, "1")
     return env
 
 

@@ -28,7 +28,8 @@ except ImportError:  # optional: no wheel on macOS arm64 + CPython 3.13
     cvxopt = None
     _cholmod = None
 
-__all__ = ["AVAILABLE", "SUPERNODAL_SWITCH", "MIN_FLOPS", "factor_statistics", "prefers_cholmod", "CholmodFactor"]
+__all__ = ["AVAILABLE", "SUPERNODAL_SWITCH", "MIN_FLOPS", "factor_statistics", "prefers_cholmod", "pattern_matrix",
+           "CholmodFactor"]
 
 #: True when cvxopt (and with it CHOLMOD) can be imported
 AVAILABLE = _cholmod is not None
@@ -68,6 +69,18 @@ def _call(function, *args, **kwargs):
         _cholmod.options.update(saved)
 
 
+def pattern_matrix(pattern, values=1.0):
+    """The upper triangle of H as a cvxopt ``spmatrix`` on ``pattern`` (CSC values ``values``, or one scalar).
+    cvxopt orders the entries by column, then row: the pattern's own CSC order, so the value buffers line up."""
+    if not AVAILABLE:
+        raise ImportError("the CHOLMOD backend needs cvxopt, which is not installed")
+    cols = np.repeat(np.arange(pattern.n, dtype=np.int64), np.diff(pattern.indptr))
+    if not np.isscalar(values):
+        values = cvxopt.matrix(np.ascontiguousarray(values, dtype=float))
+    return cvxopt.spmatrix(values, cvxopt.matrix(pattern.indices.astype(np.int64), tc="i"),
+                           cvxopt.matrix(cols, tc="i"), (pattern.n, pattern.n))
+
+
 class CholmodFactor:
     """CHOLMOD's factorisation of matrices with one ``HessianPattern`` (upper triangle, CSC) and one ordering."""
 
@@ -78,11 +91,8 @@ class CholmodFactor:
         perm = np.asarray(perm, dtype=np.int64)
         if perm.shape != (n,) or not np.array_equal(np.sort(perm), np.arange(n)):
             raise ValueError(f"CholmodFactor: perm must be a permutation of range({n})")
-        cols = np.repeat(np.arange(n, dtype=np.int64), np.diff(pattern.indptr))
-        # cvxopt orders the entries by column, then row: the same CSC order as the pattern (np.unique keys)
         self._values = cvxopt.matrix(np.zeros(pattern.nnz))
-        self._matrix = cvxopt.spmatrix(1.0, cvxopt.matrix(pattern.indices.astype(np.int64), tc="i"),
-                                       cvxopt.matrix(cols, tc="i"), (n, n))
+        self._matrix = pattern_matrix(pattern)
         self._view = np.asarray(self._values).reshape(-1)   # writable view of the value buffer
         self._rhs = cvxopt.matrix(np.zeros(n))
         self._rhs_view = np.asarray(self._rhs).reshape(-1)
