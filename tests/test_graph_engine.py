@@ -160,11 +160,15 @@ def test_trial_reject_restores_and_finish_leaves_the_accepted_state():
     trial.accept(r1)
     assert trial.chi2 == r1
     x1 = state.get()
-    trial.try_step(-10 * dx)
-    system = trial.finish()
+    trial.try_step(-10 * dx)                   # linearises at the accepted state before leaving it
+    chi2, system = trial.finish()
     np.testing.assert_array_equal(state.get(), x1)
-    assert system.chi2 == r1
+    assert chi2 == system.chi2 == r1
     np.testing.assert_array_equal(system.gradient, state.linearise().gradient)
+    trial.accept(trial.try_step(0.5 * dx))      # accepted, then finished before anything needed (H, b) there
+    x2 = state.get()
+    assert trial.finish() == (trial.chi2, None)
+    np.testing.assert_array_equal(state.get(), x2)
 
 
 @pytest.mark.parametrize("name, params", [("lm", LevenbergMarquardtParams()), ("gn", GaussNewtonParams()),

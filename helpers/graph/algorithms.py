@@ -3,11 +3,11 @@
 (The default of ``optimize``, a Levenberg–Marquardt that converges far from the optimum, is in ``algorithms_default``.)
 
 Each algorithm is a small class built from a frozen parameters dataclass; ``run(state, max_iterations, record)``
-works on a ``linearise.FreeState`` and returns the ``LinearSystem`` (H, b, χ²) of the state it leaves in the
-vertices. All three try steps through ONE mechanism, ``Trial``: it holds the accepted state X with its χ² and
-(H, b); ``try_step(dx)`` moves to X ⊞ (−dx) and returns χ² there, ``accept(chi2)`` keeps the moved state (and
-relinearises), ``reject()`` goes back to X, ``finish()`` leaves X in the vertices. ``record(k, chi2, mu,
-rejected)`` is called once per outer iteration.
+works on a ``linearise.FreeState`` and returns χ² and the ``LinearSystem`` (H, b, χ²) of the state it leaves in
+the vertices (None when it stopped before linearising there). All three try steps through ONE mechanism,
+``Trial``: it holds the accepted state X with its χ² and (H, b); ``try_step(dx)`` moves to X ⊞ (−dx) and returns
+χ² there, ``accept(chi2)`` keeps the moved state (linearised when next needed), ``reject()`` goes back to X,
+``finish()`` leaves X in the vertices. ``record(k, chi2, mu, rejected)`` is called once per outer iteration.
 
 Transactions (g2o's push/pop). ``Algorithm.run`` — shared by all (the default algorithm too) — runs an algorithm's
 ``iterate`` inside ``try/except BaseException``: whatever escapes (a NonFiniteError, an exception in an edge model
@@ -41,6 +41,9 @@ from .linearise import LinearSystem
 
 __all__ = ["GaussNewtonParams", "LevenbergMarquardtParams", "GTSAMLevenbergMarquardtParams", "Algorithm",
            "GaussNewton", "LevenbergMarquardt", "GTSAMLevenbergMarquardt", "Trial", "ALGORITHMS", "make_algorithm"]
+
+
+_EPS = float(np.finfo(float).eps)
 
 
 def _dot(a, b):
@@ -109,13 +112,24 @@ class GTSAMLevenbergMarquardtParams:
 
 
 class Trial:
-    """The accepted state of a run and the save / try / accept / reject mechanism all algorithms share."""
+    """The accepted state of a run and the save / try / accept / reject mechanism all algorithms share.
+
+    (H, b) at an accepted state is computed when first asked for (``system``): a run that stops right after
+    accepting a step never linearises there (the optimiser then linearises on demand, e.g. for marginals)."""
 
     def __init__(self, state):
         self.state = state
         self.x = state.get()                  # the accepted state X
-        self.system = state.linearise("optimize: at the initial estimates")  # H, b at the accepted state
-        self.chi2 = self.system.chi2          # χ² at the accepted state
+        self._system = state.linearise("optimize: at the initial estimates")  # H, b at the accepted state
+        self.chi2 = self._system.chi2         # χ² at the accepted state
+
+    @property
+    def system(self):
+        """(H, b, χ²) at the accepted state X (the vertices must hold X; if linearising there raises, the run
+        leaves X in the vertices: its χ² was finite when it was accepted)."""
+        if self._system is None:
+            self._system = self.state.linearise("optimize: at an accepted step")
+        return self._system
 
     @property
     def gradient(self):
@@ -126,23 +140,24 @@ class Trial:
 
     def try_step(self, dx):
         """Move to X ⊞ (−dx); returns χ² there (the accepted state is kept until ``accept``)."""
+        self.system                            # linearised at X before X is left
         self.state.retract(dx)
         return self.state.chi2("optimize: at a trial step")
 
     def accept(self, chi2):
-        """Keep the tried state (χ² = ``chi2``) and relinearise there (X stays the old one if that raises)."""
-        x = self.state.get()
-        system = self.state.linearise("optimize: at an accepted step")
-        self.x, self.chi2, self.system = x, chi2, system
+        """Keep the tried state (χ² = ``chi2``); it is linearised when (H, b) is next needed."""
+        self.x, self.chi2, self._system = self.state.get(), chi2, None
 
     def reject(self):
         """Go back to the accepted state."""
         self.state.set(self.x)
 
     def finish(self):
-        """Leave the accepted state in the vertices; returns its (H, b, χ²)."""
+        """Leave the accepted state in the vertices; returns (χ², its LinearSystem or None if never linearised)."""
         self.state.set(self.x)
-        return LinearSystem(self.system.hessian_data, self.system.gradient, self.chi2)
+        if self._system is None:
+            return self.chi2, None
+        return self.chi2, LinearSystem(self._system.hessian_data, self._system.gradient, self.chi2)
 
 
 class Algorithm:
@@ -151,7 +166,8 @@ class Algorithm:
     name = None
 
     def run(self, state, max_iterations, record):
-        """Iterate from the vertices' state; returns the (H, b, χ²) of the accepted state left in the vertices.
+        """Iterate from the vertices' state; returns (χ², LinearSystem or None) of the accepted state left in the
+        vertices (``Trial.finish``).
 
         Any exception or interrupt (BaseException) restores the last accepted state before it propagates."""
         trial = None
@@ -278,18 +294,26 @@ class GTSAMLevenbergMarquardt(Algorithm):
 
     def _damped_step(self, trial, lam):
         """Raise λ until a step passes the fidelity test: returns (χ² after it, λ, rejected) — the state is then
-        at the tried step — or (None, λ, rejected) when λ reached ``max_lambda``."""
+        at the tried step — or (None, λ, rejected) when λ reached ``max_lambda`` or when a failed step changed χ²
+        by less than ``relative_tolerance``·χ² (GTSAM's ``tryLambda``: a larger λ is not worth trying then).
+
+        The fidelity test: the actual decrease χ²₀ − χ²₁ over the linearised one ℓ = 2bᵀdx − dxᵀH dx, which with
+        (H + λI) dx = b is bᵀdx + λ‖dx‖², must exceed ``min_model_fidelity``; a step with ℓ ≤ ε·χ²₀ (ε the
+        machine epsilon) never passes it, as in GTSAM."""
         p = self.params
         rejected = 0
         while lam < p.max_lambda:
             dx = trial.solve(lam)
             if np.all(np.isfinite(dx)):
-                # linearised decrease 2bᵀdx − dxᵀH dx, with (H + λI) dx = b:  = bᵀdx + λ‖dx‖²
                 lin = _dot(trial.gradient, dx) + lam * _dot(dx, dx)
-                r1 = trial.try_step(dx)
-                if lin >= 0 and np.isfinite(r1) and (trial.chi2 - r1) / max(lin, 1e-300) > p.min_model_fidelity:
-                    return r1, lam, rejected
-                trial.reject()
+                if lin >= 0:
+                    r1 = trial.try_step(dx)
+                    change = trial.chi2 - r1
+                    if np.isfinite(r1) and lin > _EPS * trial.chi2 and change / lin > p.min_model_fidelity:
+                        return r1, lam, rejected
+                    trial.reject()
+                    if np.isfinite(r1) and abs(change) < p.relative_tolerance * trial.chi2:
+                        return None, lam, rejected + 1
             rejected += 1
             lam *= p.lambda_factor
         return None, lam, rejected

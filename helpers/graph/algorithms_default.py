@@ -115,6 +115,7 @@ class ArcTrial(Trial):
                           if g.cls.oplus_batch is VertexSE2.oplus_batch]
 
     def try_step(self, dx):
+        self.system                           # linearised at X before X is left
         self.state.retract(dx)                # every class by its own ⊞ (and its output checks) ...
         if self._arc_rows:                    # ... then the additive SE(2) poses along arcs instead
             x = self.state.get()

@@ -25,7 +25,8 @@ __all__ = ["GraphElements"]
 class GraphElements:
     """Storage and element bookkeeping of a graph (``SparseOptimizer`` adds structure, optimisation, marginals).
 
-    ``_structure_stale`` is True whenever the elements changed since the last ``initialize_optimization``;
+    ``_structure_stale`` is True whenever the elements changed since the last ``initialize_optimization``, and
+    ``_rebuild_needed`` when the change was more than additions of vertices and edges;
     ``_hessian_index`` (per vertex handle: first row in the free state vector, −1 when fixed) is that build's.
     """
 
@@ -36,6 +37,7 @@ class GraphElements:
         self._n_edges = 0
         self._n_vertices = 0
         self._structure_stale = True
+        self._rebuild_needed = True     # something other than additions changed since the last build
         self._hessian_index = np.zeros(0, dtype=np.int64)
         self._dirty_edge_classes = set()  # edge classes whose values were edited since the last build/refresh
 
@@ -43,6 +45,12 @@ class GraphElements:
         """An estimate, measurement, information or parameter changed (subclasses drop cached linearisations)."""
 
     def _structure_changed(self):
+        """Elements removed, a vertex fixed or freed, an edge's vertex replaced: the next build starts afresh."""
+        self._structure_stale = True
+        self._rebuild_needed = True
+
+    def _structure_grown(self):
+        """Vertices or edges added: the next build may extend the last one (``structure.extend_structure``)."""
         self._structure_stale = True
 
     def _edge_store(self, cls):
@@ -67,7 +75,7 @@ class GraphElements:
         vertex._h = self._vertex_store.append(vertex)
         vertex._graph = self
         self._n_vertices += 1
-        self._structure_changed()
+        self._structure_grown()
         return True
 
     def add_edge(self, edge):
@@ -93,7 +101,7 @@ class GraphElements:
         for v in edge._vertices:
             v._edges[edge] = None
         self._n_edges += 1
-        self._structure_changed()
+        self._structure_grown()
         return True
 
     def add_edges(self, edge_class, vertices, measurements, information=None, **params):
@@ -138,7 +146,7 @@ class GraphElements:
             out.append(e)
         store.objects.extend(out)
         self._n_edges += count
-        self._structure_changed()
+        self._structure_grown()
         return out
 
     def _check_edge_rows(self, edge_class, rows):

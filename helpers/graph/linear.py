@@ -103,17 +103,56 @@ class HessianPattern:
         diag = np.arange(n, dtype=np.int64)
         r = np.concatenate([rows, diag])
         c = np.concatenate([cols, diag])
-        key = c * max(n, 1) + r
-        uniq, inverse = np.unique(key, return_inverse=True)
+        uniq, inverse = np.unique((c << 32) | r, return_inverse=True)
         nvalid = len(rows)
         self.nnz = len(uniq)
+        self.keys = uniq                     # (col << 32) | row of every CSC entry, ascending
         self.scatter = np.full(len(valid), self.nnz, dtype=np.int64)
         self.scatter[valid] = inverse[:nvalid]
-        self.indices = (uniq % max(n, 1)).astype(np.int32)
+        self.indices = (uniq & 0xFFFFFFFF).astype(np.int32)
         self.indptr = np.zeros(n + 1, dtype=np.int32)
-        np.cumsum(np.bincount(uniq // max(n, 1), minlength=n), out=self.indptr[1:])
+        np.cumsum(np.bincount(uniq >> 32, minlength=n), out=self.indptr[1:])
         # diag_pos[i]: CSC position of H[i, i]
         self.diag_pos = inverse[nvalid:].astype(np.int64)
+
+    def extended(self, n, rows, cols, valid):
+        """The pattern after free rows ``self.n … n−1`` and contributions ``rows``/``cols``/``valid`` (as in
+        the constructor) were added: returns (pattern, scatter of the new contributions), or None when a valid new
+        contribution joins two old rows in an entry the old pattern lacks (a new edge between old vertices that
+        were not coupled), which the append-only extension cannot place. Contributions between old rows that the
+        pattern has (a landmark's diagonal block, seen again from a new pose) keep their positions; every other
+        entry lies in a new column, so the old CSC positions do not move: the new data array is the old one
+        followed by the new columns, and equals, position for position, the pattern the constructor would build
+        from all contributions."""
+        n = int(n)
+        valid = np.asarray(valid, dtype=bool)
+        rows = np.asarray(rows, dtype=np.int64)[valid]
+        cols = np.asarray(cols, dtype=np.int64)[valid]
+        if n < self.n:
+            return None
+        old = cols < self.n
+        known = (cols[old] << 32) | rows[old]
+        at = np.searchsorted(self.keys, known)
+        if at.size and (int(at.max()) >= self.nnz or np.any(self.keys[at] != known)):
+            return None
+        fresh = np.arange(self.n, n, dtype=np.int64)
+        key = (np.concatenate([cols[~old], fresh]) << 32) | np.concatenate([rows[~old], fresh])
+        uniq, inverse = np.unique(key, return_inverse=True)
+        new = HessianPattern.__new__(HessianPattern)
+        new.n, new.nnz = n, self.nnz + len(uniq)
+        new.keys = np.concatenate([self.keys, uniq])
+        new.indices = np.concatenate([self.indices, (uniq & 0xFFFFFFFF).astype(np.int32)])
+        counts = np.bincount((uniq >> 32) - self.n, minlength=n - self.n)
+        new.indptr = np.concatenate([self.indptr, self.indptr[-1] + np.cumsum(counts)]).astype(np.int32)
+        n_new = int(np.count_nonzero(~old))
+        new.diag_pos = np.concatenate([self.diag_pos, self.nnz + inverse[n_new:]]).astype(np.int64)
+        new.scatter = None                       # composed by the caller (structure.extend_structure)
+        placed = np.empty(len(rows), dtype=np.int64)
+        placed[old] = at
+        placed[~old] = self.nnz + inverse[:n_new]
+        scatter = np.full(len(valid), new.nnz, dtype=np.int64)
+        scatter[valid] = placed
+        return new, scatter
 
     def assemble(self, values):
         """CSC data of the upper triangle of H from the contribution values (same order as rows/cols)."""

@@ -34,7 +34,7 @@ from .errors import GraphError
 from .linear import LDLSolver
 from .linearise import FreeState, total_chi2
 from .marginals import marginal_blocks
-from .structure import build_structure, refresh_edge_values
+from .structure import build_structure, extend_structure, refresh_edge_values
 from .vertex import BaseVertex
 
 __all__ = ["SparseOptimizer", "DefaultParams", "LevenbergMarquardtParams", "GaussNewtonParams",
@@ -77,14 +77,23 @@ class SparseOptimizer(GraphElements):
     def initialize_optimization(self):
         """Build the structure: Hessian indices of the free vertices, edge gather arrays, the H pattern.
 
+        When vertices and edges were only added since the last build, the structure is extended instead of
+        rebuilt (``structure.extend_structure``; the same arrays either way). The solver's ordering and symbolic
+        analysis are redone for every new pattern (qdldl chooses its own ordering).
+
         Raises GaugeFreedomError if a component of free vertices is not anchored.
         """
-        structure = build_structure(self._vertex_store, self._edge_stores)
+        structure = None
+        if self._structure is not None and not self._rebuild_needed:
+            structure = extend_structure(self._structure, self._vertex_store, self._edge_stores)
+        if structure is None:
+            structure = build_structure(self._vertex_store, self._edge_stores)
         self._solver.analyse(structure.pattern)
         self._hessian_index = structure.hessian_index
         self._structure = structure
         self._linear_system = None
         self._structure_stale = False
+        self._rebuild_needed = False
         self._dirty_edge_classes.clear()
         return True
 
@@ -132,8 +141,9 @@ class SparseOptimizer(GraphElements):
             return self.chi2()
         t0 = time.perf_counter()
         self._linear_system = None  # stays None if the run raises (H is then recomputed when asked for)
-        self._linear_system = method.run(self._free_state(), max_iterations, lambda *row: self._record(*row, t0))
-        return self._linear_system.chi2
+        chi2, self._linear_system = method.run(self._free_state(), max_iterations,
+                                               lambda *row: self._record(*row, t0))
+        return chi2
 
     def _record(self, k, chi2, mu, rejected, t0):
         entry = {"iteration": k, "chi2": chi2, "mu": mu, "rejected": rejected, "time": time.perf_counter() - t0}

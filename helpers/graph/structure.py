@@ -11,6 +11,14 @@ Hessian pattern. Every edge contributes the blocks H_kl = J_kᵀ Ω J_l (k ≤ l
 to its slots; the contributions are listed in the order ``linearise.linearise`` produces their values (per class,
 per slot k: H_kk, H_k(k+1), …, then b_k), and ``HessianPattern`` maps them to CSC positions once.
 
+Extension. When vertices and edges were only added since the last build (nothing removed, fixed, freed or
+reconnected), ``extend_structure`` builds the same structure from the old one: the new free vertices take the rows
+after the old ones, every edge class's old rows keep their gather arrays and Hessian positions, and only the new
+edges' contributions are placed (``HessianPattern.extended``: they lie in the new columns, so the old CSC positions
+do not move) and gauge-checked (the old components were anchored; a new vertex must reach one of them, a fixed
+vertex or a prior through the new edges). An edge joining two old vertices cannot be placed that way: the build
+then starts afresh. Either way the result equals ``build_structure``'s array for array.
+
 Gauge check. Free vertices joined by an edge are connected; a component is anchored if one of its vertices is in
 an edge with a fixed vertex or in a unary (prior) edge. An unanchored component can move as a whole without
 changing χ², so H is singular: ``GaugeFreedomError`` names its vertices.
@@ -25,7 +33,8 @@ from scipy.sparse.csgraph import connected_components
 from .errors import GaugeFreedomError
 from .linear import HessianPattern
 
-__all__ = ["GraphStructure", "EdgeClassBlock", "VertexGroup", "build_structure", "check_gauge", "refresh_edge_values"]
+__all__ = ["GraphStructure", "EdgeClassBlock", "VertexGroup", "build_structure", "extend_structure", "check_gauge",
+           "refresh_edge_values"]
 
 
 @dataclass
@@ -211,6 +220,108 @@ def build_structure(vertex_store, edge_stores):
         dimension=n, handle_count=vertex_store.count, hessian_index=hessian_index, vertex_groups=groups,
         manifold=any(g.cls.oplus_jacobian_batch is not None for g in groups), free_state_index=free_state_index,
         blocks=blocks, pattern=HessianPattern(n, rows_c, cols_c, valid_c), gradient_rows=brow_c)
+
+
+def _contribution_widths(store):
+    """Entries per edge of each H contribution group (slot pairs k ≤ l, ``hessian_contributions``' order) and of
+    each b group (slot k)."""
+    dims = store.slot_dimensions
+    h = [dims[k] * (dims[k] + 1) // 2 if k == l else dims[k] * dims[l]
+         for k in range(store.slots) for l in range(k, store.slots)]
+    return h, list(dims)
+
+
+def _interleave(old_blocks, plan, old_values, new_values, pick):
+    """Per block of ``plan`` ((store, old row count, new row count)) and per contribution group (``pick`` of
+    ``_contribution_widths``): the old block's segment of ``old_values`` followed by the new edges' segment of
+    ``new_values`` — the order ``build_structure`` lists the contributions of all rows in."""
+    old_at, pos = {}, 0
+    for blk in old_blocks:
+        old_at[id(blk.store)] = pos
+        pos += blk.count * sum(pick(_contribution_widths(blk.store)))
+    parts, new_pos = [], 0
+    for store, e_old, e_new in plan:
+        o = old_at.get(id(store), 0)
+        for w in pick(_contribution_widths(store)):
+            parts += [old_values[o:o + e_old * w], new_values[new_pos:new_pos + e_new * w]]
+            o += e_old * w
+            new_pos += e_new * w
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+
+
+def _gauge_extension_ok(old, free_handles, link_a, link_b, anchored_handles):
+    """Whether every new free vertex reaches an anchored component through the new edges (``old`` passed its
+    gauge check, so each old free vertex stands for an anchored component: node 0 below). Reachability spreads
+    along the links a few rounds at a time (a new pose is one link from the graph); a long chain of new vertices
+    falls back to connected components."""
+    new_free = free_handles[free_handles >= old.handle_count]
+    if new_free.size == 0:
+        return True
+    node = np.zeros(int(free_handles.max()) + 1, dtype=np.int64)
+    node[new_free] = np.arange(1, new_free.size + 1)
+    a = node[np.concatenate(link_a)] if link_a else np.zeros(0, dtype=np.int64)
+    b = node[np.concatenate(link_b)] if link_b else np.zeros(0, dtype=np.int64)
+    nodes = new_free.size + 1
+    reached = np.zeros(nodes, dtype=bool)
+    reached[0] = True
+    if anchored_handles:
+        reached[node[np.concatenate(anchored_handles)]] = True
+    for _ in range(8):
+        if reached.all():
+            return True
+        forward, backward = reached[a] & ~reached[b], reached[b] & ~reached[a]
+        if not (forward.any() or backward.any()):
+            return False
+        reached[b[forward]] = True
+        reached[a[backward]] = True
+    ncomp, labels = connected_components(sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(nodes, nodes)),
+                                         directed=False)
+    return bool(np.isin(labels, labels[reached]).all())
+
+
+def extend_structure(old, vertex_store, edge_stores):
+    """The structure of the current elements built from ``old`` (module docstring, Extension) when only vertices
+    and edges were added since; None when it cannot be (an edge between two old vertices, or rows that are not
+    an extension of the old ones), and the caller builds afresh. Raises GaugeFreedomError as ``build_structure``."""
+    hessian_index, n, free_handles, groups, free_state_index = free_state_layout(vertex_store)
+    if not np.array_equal(hessian_index[:old.handle_count], old.hessian_index):
+        return None
+    old_by_store = {id(blk.store): blk for blk in old.blocks}
+    offset = vertex_store.offset.values
+    blocks, plan, contributions, links = [], [], ([], [], [], []), ([], [], [])
+    for store in edge_stores.values():
+        rows = store.alive_rows()
+        ob = old_by_store.pop(id(store), None)
+        e_old = 0 if ob is None else ob.count
+        if len(rows) < e_old or (e_old and not np.array_equal(rows[:e_old], ob.rows)):
+            return None
+        if len(rows) == 0:
+            continue
+        blocks.append(edge_class_block(store, rows, offset, hessian_index))
+        plan.append((store, e_old, len(rows) - e_old))
+        if len(rows) > e_old:
+            fresh = edge_class_block(store, rows[e_old:], offset, hessian_index)
+            for acc, part in zip(contributions, hessian_contributions(fresh, n)):
+                acc += part
+            for acc, part in zip(links, gauge_links(fresh)):
+                acc += part
+    if old_by_store:
+        return None
+    cat = [np.concatenate(c) if c else np.zeros(0, dtype=np.int64) for c in contributions]
+    extension = old.pattern.extended(n, cat[0], cat[1], cat[2].astype(bool))
+    if extension is None:
+        return None
+    if not _gauge_extension_ok(old, free_handles, *links):
+        return build_structure(vertex_store, edge_stores)        # raises GaugeFreedomError, naming the vertices
+    pattern, scatter_new = extension
+    old_scatter = np.where(old.pattern.scatter == old.pattern.nnz, pattern.nnz, old.pattern.scatter)
+    pattern.scatter = _interleave(old.blocks, plan, old_scatter, scatter_new, lambda w: w[0])
+    old_brows = np.where(old.gradient_rows == old.dimension, n, old.gradient_rows)
+    gradient_rows = _interleave(old.blocks, plan, old_brows, cat[3], lambda w: w[1])
+    return GraphStructure(
+        dimension=n, handle_count=vertex_store.count, hessian_index=hessian_index, vertex_groups=groups,
+        manifold=any(g.cls.oplus_jacobian_batch is not None for g in groups), free_state_index=free_state_index,
+        blocks=blocks, pattern=pattern, gradient_rows=gradient_rows)
 
 
 def check_gauge(free_handles, handle_count, link_a, link_b, anchored_handles, vertex_objects):
