@@ -66,3 +66,30 @@ def test_plot_map_draws_both_runs():
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
     assert labels[2] == "landmarks, ids known (1)" and len(ax.lines) == 4
     plt.close(fig)
+
+
+def test_observed_points_and_smoothed_nearest_neighbour_on_a_one_tree_map():
+    pts = va._observed_points(np.array([1.0, 2.0, math.pi / 2]), np.array([[2.0, 1.0], [0.0, math.pi / 2]]))
+    np.testing.assert_allclose(pts, [[1.0, 4.0], [0.0, 2.0]], atol=1e-12)
+    ref = _dead_reckoning_reference()
+    ref.landmark_vertices = {34: VertexPointXY(None, np.array([0.0, 0.0]))}
+    # one tree in the map: every observation's nearest tree is id 34, right for its 41 observations of 3 640
+    assert va.smoothed_nearest_neighbour(ref) == pytest.approx(41 / 3640, rel=1e-12)
+    with pytest.raises(ValueError, match="reference"):
+        va.smoothed_nearest_neighbour(SimpleNamespace(landmark_vertices={}))
+
+
+def test_known_id_nearest_neighbour_counts_every_re_observation():
+    (row,) = va.known_id_nearest_neighbour(periods=(400,))
+    assert row["period"] == 400 and row["re_observations"] == 3640 - 151   # all but each id's first sighting
+    assert 0.5 < row["nn_correct"] < 1.0 and 0.0 < row["median_error"] < row["p90_error"]
+    with pytest.raises(ValueError, match="periods"):
+        va.known_id_nearest_neighbour(periods=(0,))
+
+
+def test_scan_probe_is_for_the_known_id_run_only():
+    from helpers.online_slam import run_victoria_park
+    with pytest.raises(ValueError, match="scan_probe"):
+        run_victoria_park("jcbb", scan_probe=lambda *a: None)
+    with pytest.raises(ValueError, match="scan_probe"):
+        run_victoria_park(None, scan_probe="not callable")

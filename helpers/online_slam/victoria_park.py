@@ -146,10 +146,12 @@ class VictoriaParkResults:
 class _KnownIds:
     """The known-id 'front-end': one vertex per file id, created at its first sighting."""
 
-    def __init__(self, graph, model):
-        self.graph, self.model, self.vertices, self.pose = graph, model, {}, None
+    def __init__(self, graph, model, probe=None):
+        self.graph, self.model, self.vertices, self.pose, self.probe = graph, model, {}, None, probe
 
     def process_scan(self, Z, R, information, ids):
+        if self.probe is not None:
+            self.probe(self.pose.estimate, Z, ids, self.vertices)
         rows = []
         for c, lid in enumerate(ids.tolist()):
             v = self.vertices.get(lid)
@@ -187,15 +189,16 @@ def _with_sigmas(stream, sigmas, odometry_scale=1.0):
             for s in stream]
 
 
-def _process(stream, data_association, model, period, iterations, frontend_options, progress):
-    """One pass over the stream; returns (graph, frontend or None, truth, χ², optimisations, seconds)."""
+def _process(stream, data_association, model, period, iterations, frontend_options, progress, probe=None):
+    """One pass over the stream; returns (graph, frontend or None, truth, χ², optimisations, seconds). ``probe``:
+    see ``run_victoria_park``."""
     t0 = time.perf_counter()
     graph = SparseOptimizer()
     first = VertexSE2(None, np.zeros(3), fixed=True)
     graph.add_vertex(first)
     poses = {stream[0][1]: first}
     if data_association is None:
-        fe = _KnownIds(graph, model)
+        fe = _KnownIds(graph, model, probe)
         fe.pose = first
     else:
         fe = OnlineFrontEnd(graph, model, data_association, **frontend_options)
@@ -244,10 +247,15 @@ def run_victoria_park(data_association: str | None = "jcbb", optimization_period
                       closure_sigma: float = 2.0, closure_support: int = 1, measurement_sigmas=None,
                       odometry_scale: float = 1.0,
                       known_id_reference: bool = True,
-                      batch_reference: bool = False, progress: bool = False) -> VictoriaParkResults:
+                      batch_reference: bool = False, progress: bool = False,
+                      scan_probe=None) -> VictoriaParkResults:
     """Process Victoria Park online with the ids hidden (module docstring). ``data_association=None`` runs the
-    known-id pipeline itself. Front-end options as in ``OnlineFrontEnd`` (``rules`` default
-    ``VICTORIA_PARK_RULES``)."""
+    known-id pipeline itself; there ``scan_probe(pose estimate, Z, ids, {file id: landmark vertex})``, if given,
+    is called before each scan is added (what the pipeline knows at that moment: ``vp_analysis``). Front-end
+    options as in ``OnlineFrontEnd`` (``rules`` default ``VICTORIA_PARK_RULES``)."""
+    if scan_probe is not None and (data_association is not None or not callable(scan_probe)):
+        raise ValueError("scan_probe must be a callable, and applies to the known-id run (data_association=None) "
+                         f"only; got scan_probe={scan_probe!r} with data_association={data_association!r}")
     if data_association is not None:
         check_algorithm(data_association, "data_association")
     period = integer(optimization_period, "optimization_period", minimum=1)
@@ -264,7 +272,7 @@ def run_victoria_park(data_association: str | None = "jcbb", optimization_period
     stream = victoria_park_scans(read_dataset("victoria_park"))
     stream = _with_sigmas(stream, measurement_sigmas, odometry_scale)
     graph, fe, truth, chi2, n_opt, seconds = _process(stream, data_association, model, period, iterations,
-                                                      options, progress)
+                                                      options, progress, scan_probe)
     known = data_association is None
     res = VictoriaParkResults(data_association=data_association, graph=graph, frontend=None if known else fe,
                               truth=truth, final_chi2=chi2, run_time=seconds, optimisations=n_opt,

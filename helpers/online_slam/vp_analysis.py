@@ -4,6 +4,7 @@ association (notebook support for ``run_victoria_park``).
     ref = res.reference                                  # the known-id run (run_victoria_park(..., known_id_reference=True))
     drift = odometry_drift(ref, lengths=(10, 50, 200, 800))
     pairs = near_duplicate_ids(ref, radius=2.0)
+    bound = known_id_nearest_neighbour(periods=(100, 20))  # association with every past id known
 
 ``odometry_drift`` compares the file's odometry, composed over n consecutive steps, with the relative pose of the
 known-id solution between the same two poses: the heading error e_θ = θ_sol − θ_odo (wrapped), the position error
@@ -20,9 +21,10 @@ import numpy as np
 from ..datasets import read_dataset
 from ..graph import VertexPointXY, VertexSE2
 from ..validation import integer, positive_number
-from .victoria_park import victoria_park_scans
+from .victoria_park import run_victoria_park, victoria_park_scans
 
-__all__ = ["poses", "landmark_positions", "odometry_drift", "near_duplicate_ids", "plot_map"]
+__all__ = ["poses", "landmark_positions", "odometry_drift", "near_duplicate_ids", "known_id_nearest_neighbour",
+           "smoothed_nearest_neighbour", "plot_map"]
 
 
 def poses(res) -> np.ndarray:
@@ -115,6 +117,64 @@ def near_duplicate_ids(reference, radius: float = 2.0) -> list[tuple]:
             if d < radius:
                 out.append((a, b, d, (a, b) in together, count.get(a, 0), count.get(b, 0)))
     return out
+
+
+def _observed_points(x, Z):
+    """(m, 2) world positions of range-bearing observations Z (2, m) taken from pose x."""
+    a = x[2] + Z[1]
+    return np.column_stack([x[0] + Z[0] * np.cos(a), x[1] + Z[0] * np.sin(a)])
+
+
+def _nearest_is_right(points, ids, keys, positions):
+    """Per observation: whether the nearest of ``positions`` (keys ``keys``) is its own id."""
+    d = np.linalg.norm(positions[None, :, :] - points[:, None, :], axis=2)
+    return np.asarray(keys)[np.argmin(d, axis=1)] == ids
+
+
+def known_id_nearest_neighbour(periods=(100, 20), **run_options) -> list[dict]:
+    """How well the plainest association could do if every *past* id were known: the known-id pipeline runs
+    (``run_victoria_park(None, optimization_period=period, **run_options)``) and, just before each scan is added,
+    every re-observation of an already mapped tree is placed in the world from the pipeline's current pose
+    estimate and paired with the nearest mapped tree. Per period: re_observations, nn_correct (fraction paired
+    with its own tree), median_error and p90_error (m, distance from the placed observation to its own tree)."""
+    out = []
+    for period in periods:
+        period = integer(period, "periods", minimum=1)
+        right, error = [], []
+
+        def probe(x, Z, ids, vertices):
+            seen = np.array([i in vertices for i in ids.tolist()], dtype=bool)
+            if not seen.any():
+                return
+            keys = list(vertices)
+            positions = np.array([vertices[k].estimate for k in keys])
+            pts = _observed_points(x, Z[:, seen])
+            right.extend(_nearest_is_right(pts, ids[seen], keys, positions).tolist())
+            own = np.array([vertices[i].estimate for i in ids[seen].tolist()])
+            error.extend(np.linalg.norm(pts - own, axis=1).tolist())
+
+        run_victoria_park(None, optimization_period=period, scan_probe=probe, **run_options)
+        out.append({"period": period, "re_observations": len(right), "nn_correct": float(np.mean(right)),
+                    "median_error": float(np.median(error)), "p90_error": float(np.percentile(error, 90))})
+    return out
+
+
+def smoothed_nearest_neighbour(reference) -> float:
+    """The same nearest-neighbour pairing with hindsight: every observation placed from the *final* known-id
+    solution's pose and paired with the nearest of its final landmarks; the fraction paired with its own id."""
+    if not reference.landmark_vertices:
+        raise ValueError("reference: a known-id run (run_victoria_park(None) or res.reference) is needed")
+    keys = sorted(reference.landmark_vertices)
+    positions = np.array([reference.landmark_vertices[k].estimate for k in keys])
+    stream = victoria_park_scans(read_dataset("victoria_park"))
+    index = {stream[0][1]: 0}
+    for item in stream:
+        if item[0] == "odometry":
+            index[item[2]] = len(index)
+    pose = poses(reference)
+    right = [_nearest_is_right(_observed_points(pose[index[item[1]]], item[2]), item[4], keys, positions)
+             for item in stream if item[0] == "scan"]
+    return float(np.mean(np.concatenate(right)))
 
 
 def plot_map(ax, online, reference, colors) -> None:
