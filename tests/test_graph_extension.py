@@ -184,3 +184,27 @@ def test_gauge_check_of_new_chains_short_and_long(length):
             with pytest.raises(GaugeFreedomError) as err:
                 extend_structure(old, g._vertex_store, g._edge_stores)
             assert {v.id for v in err.value.component} == {v.id for v in chain}
+
+
+def test_old_blocks_are_joined_or_regathered_as_a_fresh_build_would():
+    """Diagonal old whitening joined with a full one (regathered), and an old edge's value edited before the
+    extension (its class regathered): both equal a fresh build, and the edit reaches the linearisation."""
+    g, rng, poses, points = start(9)
+    old = g._structure
+    p = VertexSE2(3000, poses[-1].estimate + [1.0, 0.0, 0.0])
+    g.add_vertex(p)
+    full = np.array([[100.0, 5.0, 0.0], [5.0, 100.0, 0.0], [0.0, 0.0, 50.0]])
+    g.add_edge(EdgeSE2([poses[-1], p], measurement=[1.0, 0.0, 0.0], information=full))
+    ext = extend_structure(old, g._vertex_store, g._edge_stores)
+    assert_same_structure(ext, build_structure(g._vertex_store, g._edge_stores))
+    g.initialize_optimization()
+    old = g._structure
+    edge = next(e for e in g.edges() if isinstance(e, EdgeRangeBearing))
+    edge.set_measurement([2.5, 0.25])
+    q = VertexSE2(3001, p.estimate + [1.0, 0.0, 0.0])
+    g.add_vertex(q)
+    g.add_edge(EdgeSE2([p, q], measurement=[1.0, 0.0, 0.0], information=full))
+    g.initialize_optimization()
+    assert_same_structure(g._structure, build_structure(g._vertex_store, g._edge_stores))
+    assert g._structure.blocks[[b.store.cls for b in g._structure.blocks].index(EdgeRangeBearing)] is not \
+        old.blocks[[b.store.cls for b in old.blocks].index(EdgeRangeBearing)]

@@ -85,7 +85,8 @@ class SparseOptimizer(GraphElements):
         """
         structure = None
         if self._structure is not None and not self._rebuild_needed:
-            structure = extend_structure(self._structure, self._vertex_store, self._edge_stores)
+            structure = extend_structure(self._structure, self._vertex_store, self._edge_stores,
+                                         self._dirty_edge_classes)
         if structure is None:
             structure = build_structure(self._vertex_store, self._edge_stores)
         self._solver.analyse(structure.pattern)

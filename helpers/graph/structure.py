@@ -279,10 +279,26 @@ def _gauge_extension_ok(old, free_handles, link_a, link_b, anchored_handles):
     return bool(np.isin(labels, labels[reached]).all())
 
 
-def extend_structure(old, vertex_store, edge_stores):
+def _joined_block(old, fresh):
+    """The block of ``old``'s rows followed by ``fresh``'s (one edge class), as ``edge_class_block`` would build it
+    over all of them; None when one part has diagonal whitening and the other not."""
+    if old.diagonal_whitening != fresh.diagonal_whitening:
+        return None
+    cat = np.concatenate
+    return EdgeClassBlock(
+        store=old.store, rows=cat([old.rows, fresh.rows]), handles=cat([old.handles, fresh.handles]),
+        state_index=[cat(pair) for pair in zip(old.state_index, fresh.state_index)],
+        hessian_start=[cat(pair) for pair in zip(old.hessian_start, fresh.hessian_start)],
+        measurements=cat([old.measurements, fresh.measurements]), whitening=cat([old.whitening, fresh.whitening]),
+        whitening_t=cat([old.whitening_t, fresh.whitening_t]), diagonal_whitening=old.diagonal_whitening,
+        params={k: cat([v, fresh.params[k]]) for k, v in old.params.items()})
+
+
+def extend_structure(old, vertex_store, edge_stores, edited=()):
     """The structure of the current elements built from ``old`` (module docstring, Extension) when only vertices
     and edges were added since; None when it cannot be (an edge between two old vertices, or rows that are not
-    an extension of the old ones), and the caller builds afresh. Raises GaugeFreedomError as ``build_structure``."""
+    an extension of the old ones), and the caller builds afresh. ``edited``: edge classes whose values changed
+    since ``old`` was built (their blocks are gathered afresh). Raises GaugeFreedomError as ``build_structure``."""
     hessian_index, n, free_handles, groups, free_state_index = free_state_layout(vertex_store)
     if not np.array_equal(hessian_index[:old.handle_count], old.hessian_index):
         return None
@@ -297,10 +313,13 @@ def extend_structure(old, vertex_store, edge_stores):
             return None
         if len(rows) == 0:
             continue
-        blocks.append(edge_class_block(store, rows, offset, hessian_index))
+        fresh = edge_class_block(store, rows[e_old:], offset, hessian_index) if len(rows) > e_old else None
+        block = ob if fresh is None else fresh if ob is None else _joined_block(ob, fresh)
+        if block is None or store.cls in edited:
+            block = edge_class_block(store, rows, offset, hessian_index)
+        blocks.append(block)
         plan.append((store, e_old, len(rows) - e_old))
-        if len(rows) > e_old:
-            fresh = edge_class_block(store, rows[e_old:], offset, hessian_index)
+        if fresh is not None:
             for acc, part in zip(contributions, hessian_contributions(fresh, n)):
                 acc += part
             for acc, part in zip(links, gauge_links(fresh)):
