@@ -10,11 +10,16 @@ landmark ids) is processed in file order, as a robot would receive it:
   pose through the edge (``OnlineFrontEnd.add_pose``);
 - the LANDMARK lines of one pose form a scan (1 or 2 trees): range-bearing observations with the file's noise
   (load2D's rule: σ_r = √c_xx, σ_β = √(c_xx / 10)), whose ids are set aside for the evaluation only;
-- every ``optimization_period`` poses (default 100, about 50 scans), ``optimization_iterations`` iterations of
-  GTSAM's LM schedule (``"lm-gtsam"``, warm-started: 2–4 iterations suffice) and a front-end refresh. The period
-  was chosen on the known-id pipeline (measured, CPU time): every 25 poses χ² = 4 678.4 in 9.6 s, every 100 poses
-  the same optimum in 3.5 s, every 400 poses a worse local minimum (χ² = 5 740) — the odometry drifts too far
-  between optimisations for the linearisation to recover.
+- every ``optimization_period`` poses (default 10, about 6 m of driving and 5 scans), ``optimization_iterations``
+  iterations of GTSAM's LM schedule (``"lm-gtsam"``, warm-started: 2–4 iterations suffice) and a front-end
+  refresh. The period is chosen for the association, which gates with the estimate of the last refresh. Measured
+  with the known ids (``vp_analysis.known_id_nearest_neighbour``, notebook 23): nearest-neighbour pairing from the
+  pipeline's own estimate is right for 0.78 of the re-observations when optimising every 100 poses, 0.94 every
+  20 and 0.95 every 10 (0.98 with hindsight). The known-id pipeline reaches the same optimum (χ² = 4 678.4) at
+  every period from 10 to 100. Every 400 poses it ends in a worse local minimum (χ² = 5 740): the odometry drifts
+  too far between optimisations for the linearisation to recover. Online with JCBB, a period of 10 gives
+  agreement 0.33 and a final χ² 3 % above the known-id one. A period of 100 gives agreement 0.26 and 53 % above,
+  in a quarter of the time.
 
 The sensor: range up to ``max_range`` (the file's ranges reach 20.7 m), field of view ``field_of_view`` (the
 bearings lie within ±76°; default 180°).
@@ -30,14 +35,16 @@ Noise model: ``measurement_sigmas=(σ_r, σ_β)`` replaces the file's observatio
 multiplies the odometry covariances — in the online run *and* in the known-id reference, so that the χ² stay
 comparable.
 
-Status (measured, benchmarks/online_slam.py): the online association does **not** reach the file's landmarks on
-this dataset — agreement 0.27 with the file's noise model, 0.42 with (0.3 m, 0.08 rad) and odometry × 10. Two causes,
-both visible with the known ids: (1) with the file's noise (σ_β = 0.2 rad, 3 m at 15 m) a tree seen for the first
-time often falls inside the gate of a mapped neighbour, and a scan of 1–2 trees gives joint compatibility no
-constellation to refuse it; (2) with a noise model close to the residuals of the known-id solution (σ_r ≈ 0.14 m,
-σ_β ≈ 0.034 rad), the odometry drifts between revisits by far more than its stated covariance (the known-id run's
-own prediction of tree 358 at scan 250 is 2.2 m off with a relative σ of 0.23 m), so revisited trees start new
-landmarks, loops stay open and the drift grows. The DriveBot runs (a consistent simulator) meet their targets.
+Status (measured, notebook 23, optimising every 10 poses): the online association does **not** reach the file's
+landmarks — agreement 0.33 with the file's noise model (296 landmarks for 151 ids, final χ² 3 % above the known-id
+one), 0.79 with (σ_r, σ_β) = (0.3 m, 0.08 rad) and the odometry covariance × 10 (155 landmarks). At a period of 100
+poses the same two models give 0.26 and 0.42. Two causes, both visible with the known ids: (1) with the file's
+noise (σ_β = 0.2 rad, 3 m at 15 m) a tree seen for the first time often falls inside the gate of a mapped
+neighbour, and a scan of 1–2 trees gives joint compatibility no constellation to refuse it; (2) with a noise model
+close to the residuals of the known-id solution (σ_r ≈ 0.14 m, σ_β ≈ 0.034 rad), the odometry drifts between
+revisits by far more than its stated covariance (the known-id run's own prediction of tree 358 at scan 250 is 2.2 m
+off with a relative σ of 0.23 m), so revisited trees start new landmarks, loops stay open and the drift grows. The
+DriveBot runs (a consistent simulator) meet their targets.
 
 Measured since (``vp_analysis.odometry_drift``, notebook 23): the file's odometry has a heading *bias*, not just
 noise — against the known-id solution the heading error over 200 steps (≈ 116 m) has median 0.18 rad and mean
@@ -240,7 +247,7 @@ def _compose(p, z):
     return np.array([p[0] + c * z[0] - s * z[1], p[1] + s * z[0] + c * z[1], th])
 
 
-def run_victoria_park(data_association: str | None = "jcbb", optimization_period: int = 100,
+def run_victoria_park(data_association: str | None = "jcbb", optimization_period: int = 10,
                       optimization_iterations: int = 10, max_range: float = 25.0,
                       field_of_view: float = math.pi, n_sigma: float = 3.0, algorithm_options=None,
                       rules: ConfirmationRules | None = None, association_space: str = "cartesian",
