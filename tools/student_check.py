@@ -5,7 +5,8 @@
 1. builds the student edition into a temporary directory (``tools/student.py``, with its self-check);
 2. grades it with the answer key's interpreter and PYTHONPATH at the student tree (no second environment):
    expects ``exercises: 0 passed, N failed`` and ``other tests: K passed, 0 failed``;
-3. grades the answer key: expects ``exercises: N passed, 0 failed``;
+3. grades the answer key (in a second process, at the same time as step 2): expects ``exercises: N passed, 0
+   failed``;
 4. copies one answer-key solution (``SOLUTION``, an exercise whose tests need no other exercise) into the student
    tree and grades that exercise: expects exactly it to pass (and the other tests still to pass).
 Prints one line per step and ``student edition check: N passed, M failed``; exit status 1 on any failure.
@@ -29,13 +30,23 @@ SOLUTION = "lab8_2a_individual_compatibility"
 SUMMARY = re.compile(r"^(exercises|other tests): (\d+) passed, (\d+) failed$", re.M)
 
 
+def start_grading(tree: pathlib.Path, *args) -> subprocess.Popen:
+    """Start tree's grader with this interpreter (a subprocess; ``finish_grading`` collects it)."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    return subprocess.Popen([sys.executable, str(tree / "tools" / "grade.py")] + list(args), cwd=str(tree),
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def finish_grading(process: subprocess.Popen):
+    """Wait for a grader; returns (stdout, {"exercises": (p, f), "other tests": (p, f)})."""
+    stdout, _ = process.communicate()
+    counts = {m.group(1): (int(m.group(2)), int(m.group(3))) for m in SUMMARY.finditer(stdout)}
+    return stdout, counts
+
+
 def grade(tree: pathlib.Path, *args):
     """Run tree's grader with this interpreter; returns (stdout, {"exercises": (p, f), "other tests": (p, f)})."""
-    env = dict(os.environ, PYTHONPATH=str(tree))
-    out = subprocess.run([sys.executable, str(tree / "tools" / "grade.py")] + list(args), cwd=str(tree), env=env,
-                         capture_output=True, text=True)
-    counts = {m.group(1): (int(m.group(2)), int(m.group(3))) for m in SUMMARY.finditer(out.stdout)}
-    return out.stdout, counts
+    return finish_grading(start_grading(tree, *args))
 
 
 def main(argv=None) -> int:
@@ -53,15 +64,17 @@ def main(argv=None) -> int:
     n = len(student.load_registry()["exercise"])
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="student-edition-"))
     tree = keep or tmp / "student"
+    answer_key = None
     try:
         student.build(tree, quiet=True)
         check("the student edition builds and passes its self-check (%d exercises)" % n, True)
+        answer_key = start_grading(ROOT)          # graded alongside the student edition (independent trees)
         out, counts = grade(tree)
         check("student edition: exercises: %s passed, %s failed (expected 0, %d); other tests: %s passed, %s failed"
               % (counts.get("exercises", ("?", "?")) + (n,) + counts.get("other tests", ("?", "?"))),
               counts.get("exercises") == (0, n) and counts.get("other tests", (0, 1))[1] == 0
               and counts["other tests"][0] > 0, out)
-        out, counts = grade(ROOT)
+        out, counts = finish_grading(answer_key)
         check("answer key: exercises: %d passed, 0 failed" % n, counts.get("exercises") == (n, 0), out)
         student.copy_solution(tree, SOLUTION)
         out, counts = grade(tree)
@@ -72,6 +85,9 @@ def main(argv=None) -> int:
     except student.BuildError as err:
         check("the student edition builds: %s" % err, False)
     finally:
+        if answer_key is not None and answer_key.poll() is None:     # interrupted: no grader left behind
+            answer_key.kill()
+            answer_key.communicate()
         if keep is None:
             shutil.rmtree(tmp, ignore_errors=True)
     print("student edition check took %.0f s" % (time.perf_counter() - start))
