@@ -141,8 +141,12 @@ class Trial:
     def try_step(self, dx):
         """Move to X ⊞ (−dx); returns χ² there (the accepted state is kept until ``accept``)."""
         self.system                            # linearised at X before X is left
-        self.state.retract(dx)
+        self._move(dx)
         return self.state.chi2("optimize: at a trial step")
+
+    def _move(self, dx):
+        """The step itself: X ⊞ (−dx) by every vertex class's own ⊞ (subclasses may move some classes otherwise)."""
+        self.state.retract(dx)
 
     def accept(self, chi2):
         """Keep the tried state (χ² = ``chi2``); it is linearised when (H, b) is next needed."""

@@ -114,15 +114,13 @@ class ArcTrial(Trial):
         self._arc_rows = [g.hessian_rows for g in state.structure.vertex_groups
                           if g.cls.oplus_batch is VertexSE2.oplus_batch]
 
-    def try_step(self, dx):
-        self.system                           # linearised at X before X is left
+    def _move(self, dx):
         self.state.retract(dx)                # every class by its own ⊞ (and its output checks) ...
         if self._arc_rows:                    # ... then the additive SE(2) poses along arcs instead
             x = self.state.get()
             for rows in self._arc_rows:
                 x[rows] = arc_oplus(self.x[rows], -dx[rows])
             self.state.set(x)
-        return self.state.chi2("optimize: at a trial step")
 
 
 class DefaultLevenbergMarquardt(Algorithm):
