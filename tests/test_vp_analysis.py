@@ -83,8 +83,12 @@ def test_known_id_nearest_neighbour_counts_every_re_observation():
     (row,) = va.known_id_nearest_neighbour(periods=(400,))
     assert row["period"] == 400 and row["re_observations"] == 3640 - 151   # all but each id's first sighting
     assert 0.5 < row["nn_correct"] < 1.0 and 0.0 < row["median_error"] < row["p90_error"]
-    with pytest.raises(ValueError, match="periods"):
-        va.known_id_nearest_neighbour(periods=(0,))
+    for bad in ((0,), (), 10, "10", (2.5,)):
+        with pytest.raises(ValueError, match="periods"):
+            va.known_id_nearest_neighbour(periods=bad)
+    for bad in (None, SimpleNamespace()):
+        with pytest.raises(ValueError, match="reference"):
+            va.smoothed_nearest_neighbour(bad)
 
 
 def test_scan_probe_is_for_the_known_id_run_only():

@@ -137,6 +137,9 @@ def known_id_nearest_neighbour(periods=(100, 20), **run_options) -> list[dict]:
     every re-observation of an already mapped tree is placed in the world from the pipeline's current pose
     estimate and paired with the nearest mapped tree. Per period: re_observations, nn_correct (fraction paired
     with its own tree), median_error and p90_error (m, distance from the placed observation to its own tree)."""
+    periods = () if isinstance(periods, (str, bytes)) or not hasattr(periods, "__iter__") else tuple(periods)
+    if not periods:
+        raise ValueError("periods must be a non-empty sequence of positive integers (poses)")
     out = []
     for period in periods:
         period = integer(period, "periods", minimum=1)
@@ -162,7 +165,7 @@ def known_id_nearest_neighbour(periods=(100, 20), **run_options) -> list[dict]:
 def smoothed_nearest_neighbour(reference) -> float:
     """The same nearest-neighbour pairing with hindsight: every observation placed from the *final* known-id
     solution's pose and paired with the nearest of its final landmarks; the fraction paired with its own id."""
-    if not reference.landmark_vertices:
+    if not getattr(reference, "landmark_vertices", None):
         raise ValueError("reference: a known-id run (run_victoria_park(None) or res.reference) is needed")
     keys = sorted(reference.landmark_vertices)
     positions = np.array([reference.landmark_vertices[k].estimate for k in keys])
