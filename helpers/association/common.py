@@ -120,6 +120,8 @@ class AssociationProblem:
 
     def jc_threshold(self, n_pairings):
         """χ²_{d·a}(c) for a pairings (array-friendly)."""
+        if isinstance(n_pairings, (int, np.integer)):
+            return chi2inv(confidence_level(self.n_sigma), self.d * int(n_pairings))     # cached scalar
         return chi2inv(confidence_level(self.n_sigma), self.d * np.asarray(n_pairings))
 
 

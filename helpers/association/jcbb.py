@@ -31,6 +31,7 @@ capped results may differ).
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,6 +66,14 @@ class JCBBTrace:
 
     def status_name(self, i: int) -> str:
         return _TRACE_STATUS_NAMES[int(self.status[i])]
+
+
+@functools.lru_cache(maxsize=256)
+def _joint_gates(c: float, d: int, K: int) -> np.ndarray:
+    """χ²_{d·a}(c) for a = 1 … K + 1 (read-only; the front-end asks for the same few gates every scan)."""
+    gates = chi2inv(c, d * np.arange(1, K + 2))
+    gates.setflags(write=False)
+    return gates
 
 
 def level_order(compatible) -> np.ndarray:
@@ -227,7 +236,7 @@ def jcbb(density, Y, n_sigma: float = 3.0, max_nodes: int | None = None, trace: 
     last_level = np.where(sub.any(axis=0), sub.shape[0] - 1 - np.argmax(sub[::-1], axis=0), -1)
     K = min(levels.size, problem.m)
     thresh = np.zeros(K + 2)                                     # thresh[a] = χ²_{d·a}(c)
-    thresh[1:] = chi2inv(confidence_level(n_sigma), problem.d * np.arange(1, K + 2))
+    thresh[1:] = _joint_gates(confidence_level(n_sigma), problem.d, K)
     out = jcbb_search(np.ascontiguousarray(problem.mu.ravel()), np.ascontiguousarray(problem.P),
                       np.ascontiguousarray(problem.Y), problem.d, levels.astype(np.int64), cand_ptr,
                       cols.astype(np.int64), last_level.astype(np.int64), thresh,

@@ -88,6 +88,7 @@ class MarginalColumns:
         self._factors = None
         self._index = {}
         self._columns = {}
+        self._joints = {}           # recent joint() results: a scan often has the same candidates as the last
         self.n = 0
         self.factorisations = 0
         self.columns_solved = 0
@@ -108,12 +109,13 @@ class MarginalColumns:
             h = v.hessian_index
             index[v] = -1 if h is None else int(h)
         self._factors, self._columns, self._index, self.n = factors, {}, index, graph.dimension
+        self._joints = {}
         self.factorisations += 1
         return True
 
     def register_without_factorisation(self, vertices) -> None:
         """No factorisation yet (e.g. only the fixed first pose): ``vertices`` have zero covariance."""
-        self._factors, self._columns, self.n = None, {}, 0
+        self._factors, self._columns, self.n, self._joints = None, {}, 0, {}
         self._index = {v: -1 for v in vertices}
 
     def has(self, vertex) -> bool:
@@ -134,11 +136,22 @@ class MarginalColumns:
             pos += dim
 
     def joint(self, vertices) -> np.ndarray:
-        """Dense joint covariance of ``vertices`` (each must have been named at ``refresh``)."""
-        vertices = list(vertices)
-        for v in vertices:
+        """Dense joint covariance of ``vertices`` (each must have been named at ``refresh``). The last few
+        results are kept until the next refresh (the same candidates come back scan after scan)."""
+        key = tuple(vertices)
+        hit = self._joints.get(key)
+        if hit is not None:
+            return hit.copy()
+        for v in key:
             if v not in self._index:
                 raise ValueError(f"vertices: {v!r} was not registered at the last refresh")
+        out = self._joint(list(key))
+        if len(self._joints) >= 8:
+            self._joints.pop(next(iter(self._joints)))          # the oldest entry
+        self._joints[key] = out
+        return out.copy()
+
+    def _joint(self, vertices) -> np.ndarray:
         dims = np.array([type(v).dimension for v in vertices], dtype=np.int64)
         offs = np.concatenate([[0], np.cumsum(dims)])
         out = np.zeros((offs[-1], offs[-1]))
