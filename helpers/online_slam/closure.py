@@ -75,7 +75,7 @@ class LoopClosure:
             return
         yu, C, Yu, Rgate, _, cands = closure
         cols = np.array([j for _, j in confirmable])
-        idx, _, _ = self._associate(yu, C, Yu[:, cols], Rgate, untrusted, [cands[i] for i in untrusted])
+        idx, _, _, _ = self._associate(yu, C, Yu[:, cols], Rgate, untrusted, [cands[i] for i in untrusted])
         if np.count_nonzero(idx >= 0) < self.closure_support:
             idx[:] = -1
         yb, Cb, Yb = sub_problem(yu, C, Yu, untrusted, cols)

@@ -28,18 +28,23 @@ from ..gaussian import Gaussian
 from ..graph import EdgeSE2PointXY
 from .algorithms import associate
 
-__all__ = ["individually_compatible", "relative_sigma", "ambiguous_pairings", "sub_problem"]
+__all__ = ["individually_compatible", "individual_d2", "relative_sigma", "ambiguous_pairings", "sub_problem"]
 
 
 def individually_compatible(yhat, C, Y, gate) -> np.ndarray:
     """(k, m) boolean: d²_ki ≤ ``gate``."""
+    return individual_d2(yhat, C, Y) <= gate
+
+
+def individual_d2(yhat, C, Y) -> np.ndarray:
+    """(k, m): d²_ki = ν_kiᵀ C_kk⁻¹ ν_ki with ν_ki = y_i − ŷ_k."""
     k, d = yhat.shape
     if k == 0 or Y.shape[1] == 0:
-        return np.zeros((k, Y.shape[1]), dtype=bool)
+        return np.zeros((k, Y.shape[1]))
     blocks = C.reshape(k, d, k, d)[np.arange(k), :, np.arange(k), :]
     nu = Y.T[None, :, :] - yhat[:, None, :]
     w = np.linalg.solve(blocks[:, None, :, :], nu[..., None])[..., 0]
-    return np.einsum("kmd,kmd->km", nu, w) <= gate
+    return np.einsum("kmd,kmd->km", nu, w)
 
 
 def relative_sigma(x, means, sig_v) -> np.ndarray:

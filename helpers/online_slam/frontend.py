@@ -52,7 +52,7 @@ from ..validation import float_array, integer, positive_number
 from .algorithms import associate, check_algorithm, check_options
 from .covariance import MarginalColumns
 from .closure import LoopClosure
-from .decisions import ambiguous_pairings, individually_compatible, relative_sigma, sub_problem
+from .decisions import ambiguous_pairings, individual_d2, relative_sigma, sub_problem
 from .models import motion_jacobians
 from .tracks import CONFIRMED, DROPPED, TENTATIVE, ConfirmationRules, Track
 from .window import LocalWindow
@@ -242,13 +242,15 @@ class OnlineFrontEnd(LoopClosure):
 
     def _associate(self, yhat, C, Y, R, cand, cand_tracks):
         """The algorithm on candidates ``cand`` (their tracks ``cand_tracks``) and all of Y; ambiguous pairings
-        removed. Returns (idx over ``cand``, observations rejected as ambiguous, Association)."""
+        removed. Returns (idx over ``cand``, observations rejected as ambiguous, Association, d² (len(cand), m)
+        of every candidate–observation pair)."""
         yc, Cc, _ = sub_problem(yhat, C, Y, cand, np.arange(Y.shape[1]))
         assoc = associate(self.algorithm, Gaussian.from_cov(yc.ravel(), Cc), Y, self.n_sigma, self.options, R)
         idx = np.asarray(assoc.idx, dtype=np.int64).copy()
         rejected = []
+        d2 = individual_d2(yc, Cc, Y)
         if self.reject_ambiguous:
-            ic = individually_compatible(yc, Cc, Y, self._ic_gate)
+            ic = d2 <= self._ic_gate
             tentative = np.array([t.status == TENTATIVE for t in cand_tracks])
             for k in ambiguous_pairings(self.algorithm, yc, Cc, Y, R, idx, self.n_sigma, self.options, ic, tentative):
                 rejected.append(int(idx[k]))
@@ -256,7 +258,7 @@ class OnlineFrontEnd(LoopClosure):
         self.stats["ambiguous_rejected"] += len(rejected)
         self.stats["nodes"] += int(assoc.stats.get("nodes", 0))
         self.stats["budget_exhausted"] += int(assoc.budget_exhausted)
-        return idx, rejected, assoc
+        return idx, rejected, assoc, d2
 
     # ================================================================================= one scan
     def process_scan(self, Z, R, information=None) -> ScanResult:
@@ -287,12 +289,11 @@ class OnlineFrontEnd(LoopClosure):
                          & (relative_sigma(x, means, sig_v) > self.closure_sigma))
             trusted = self._tracking_candidates(cands, untrusted)
             if trusted.size:
-                idx, rejected, result.association = self._associate(yu, C, Yu, Rgate, trusted,
-                                                                    [cands[i] for i in trusted])
+                idx, rejected, result.association, d2 = self._associate(yu, C, Yu, Rgate, trusted,
+                                                                        [cands[i] for i in trusted])
                 discard[rejected] = True
                 if self._exclusion_gate is not None:
-                    discard |= individually_compatible(*sub_problem(yu, C, Yu, trusted, np.arange(m)),
-                                                       self._exclusion_gate).any(axis=0)
+                    discard |= (d2 <= self._exclusion_gate).any(axis=0)
                 for a, i in enumerate(trusted):
                     self._outcome(cands[i], int(idx[a]), x, obs0, Z, information, scan, edges, confirmable, result)
             confirmable = self._merge_duplicates(confirmable, cands, trusted, untrusted, sig_v, means, scan, edges,
