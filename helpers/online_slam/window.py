@@ -131,7 +131,7 @@ class LocalWindow:
         k = len(rows)
         q = sigma.shape[0] - na
         out = np.empty((k + q, k + q))
-        out[:k, :k] = A @ sigma[:na, :na] @ A.T + self.P[np.ix_(rows, rows)]
+        out[:k, :k] = A @ sigma[:na, :na] @ A.T + self.P[rows][:, rows]
         cross = A @ sigma[:na, na:]
         out[:k, k:] = cross
         out[k:, :k] = cross.T
