@@ -24,7 +24,7 @@ from ..validation import integer, positive_number
 from .victoria_park import run_victoria_park, victoria_park_scans
 
 __all__ = ["poses", "landmark_positions", "odometry_drift", "near_duplicate_ids", "known_id_nearest_neighbour",
-           "smoothed_nearest_neighbour", "plot_map"]
+           "smoothed_nearest_neighbour", "plot_map", "merge_outcomes"]
 
 
 def poses(res) -> np.ndarray:
@@ -195,3 +195,28 @@ def plot_map(ax, online, reference, colors) -> None:
     ax.legend(loc="best", fontsize="small")
 
 
+
+
+def _majority(ids) -> int:
+    values, counts = np.unique(np.asarray(ids, dtype=np.int64), return_counts=True)
+    return int(values[np.argmax(counts)]) if values.size else 0
+
+
+def merge_outcomes(res) -> list[dict]:
+    """Every loop-closure merge of an online run, judged against the file's ids after the fact: the merged
+    track's observations against the old landmark's own (a merge is *wrong* when their majority ids differ).
+    One row per merge (scan order): track, old, scan (−1 when not logged), wrong, undone, T (the verification's
+    statistic, NaN when not verified). Merges kept are read from the tracks, undone ones from ``merge_log``."""
+    fe = getattr(res, "frontend", None)
+    if fe is None:
+        raise ValueError("res: an online run (run_victoria_park with data_association set) is needed")
+    truth = np.asarray(res.truth)
+    logged = {(m["track"], m["old"]): m for m in getattr(fe, "merge_log", [])}
+    pairs = {(t.key, t.alias_of) for t in fe.tracks if t.alias_of >= 0} | set(logged)
+    rows = []
+    for key, old in pairs:
+        m = logged.get((key, old), {})
+        wrong = _majority(truth[fe.tracks[key].observations]) != _majority(truth[fe.tracks[old].observations])
+        rows.append({"track": key, "old": old, "scan": m.get("scan", -1), "wrong": bool(wrong),
+                     "undone": bool(m.get("undone", False)), "T": m.get("T", float("nan"))})
+    return sorted(rows, key=lambda r: (r["scan"], r["track"]))
