@@ -31,7 +31,8 @@ change: it records track keys, and t's key now owns a vertex.
 
 A merge whose edges cannot be told apart (two edges from one pose to m_l) or whose test cannot be computed (H not
 positive definite) is left as it is and counted as ``merges_unverified``: a failed verification changes nothing.
-``merge_log`` keeps one entry per verified merge (track, old landmark, scan, T, χ² of t's edges, edges, undone).
+``merge_log`` keeps one entry per verified merge (track, old landmark, scan, T, χ² of t's edges, edges, undone);
+``merge_scans`` the scan of every merge, verified or not.
 """
 from __future__ import annotations
 
@@ -96,6 +97,7 @@ class MergeVerification:
         self._unverified = []          # (track, old track, scan) merged since the last refresh
         self._scan_firsts, self._scan_poses = [], []   # pose vertex current from scan _scan_firsts[i] on
         self.merge_log = []
+        self.merge_scans = {}          # track key -> scan of its (last) merge, verified or not
         self.stats.update(merges_verified=0, merges_undone=0, merges_unverified=0, verify_time=0.0)
 
     def _note_pose(self, vertex):
@@ -110,6 +112,7 @@ class MergeVerification:
         return self._scan_poses[bisect_right(self._scan_firsts, scan) - 1]
 
     def _note_merge(self, t, old, scan):
+        self.merge_scans[t.key] = scan
         if self.verify_merges:
             self._unverified.append((t, old, scan))
 
@@ -164,10 +167,15 @@ class MergeVerification:
     def _undo_merge(self, t, edges):
         """t gets its own landmark vertex, and its edges move to it (module docstring)."""
         est = np.mean([self.model.inverse(e.vertex(0).estimate, e.measurement)[0] for e in edges], axis=0)
+        z = np.array([e.measurement for e in edges])
+        info = np.array([e.information for e in edges])
         vertex = self.landmark_factory(t.key, est)
         self.graph.add_vertex(vertex)
-        self.graph.add_edges(type(edges[0]), [(e.vertex(0), vertex) for e in edges],
-                             np.array([e.measurement for e in edges]), np.array([e.information for e in edges]))
+        try:
+            self.graph.add_edges(type(edges[0]), [(e.vertex(0), vertex) for e in edges], z, info)
+        except Exception:
+            self.graph.remove_vertex(vertex)          # nothing else has changed yet
+            raise
         for e in edges:
             self.graph.remove_edge(e)
         t.vertex, t.alias_of = vertex, -1

@@ -24,7 +24,8 @@ from ..validation import integer, positive_number
 from .victoria_park import run_victoria_park, victoria_park_scans
 
 __all__ = ["poses", "landmark_positions", "odometry_drift", "near_duplicate_ids", "known_id_nearest_neighbour",
-           "smoothed_nearest_neighbour", "plot_map", "merge_outcomes"]
+           "smoothed_nearest_neighbour", "plot_map", "merge_outcomes",
+           "duplicate_landmarks"]
 
 
 def poses(res) -> np.ndarray:
@@ -217,6 +218,27 @@ def merge_outcomes(res) -> list[dict]:
     for key, old in pairs:
         m = logged.get((key, old), {})
         wrong = _majority(truth[fe.tracks[key].observations]) != _majority(truth[fe.tracks[old].observations])
-        rows.append({"track": key, "old": old, "scan": m.get("scan", -1), "wrong": bool(wrong),
+        scan = m.get("scan", getattr(fe, "merge_scans", {}).get(key, -1))
+        rows.append({"track": key, "old": old, "scan": scan, "wrong": bool(wrong),
                      "undone": bool(m.get("undone", False)), "T": m.get("T", float("nan"))})
     return sorted(rows, key=lambda r: (r["scan"], r["track"]))
+
+
+def duplicate_landmarks(res) -> list[dict]:
+    """Loops left open, after the fact: every confirmed landmark of an online run whose majority file id is the
+    majority id of a landmark confirmed before it (a tree mapped twice). One row per duplicate, in the order of
+    confirmation: key, id, scan (its confirmation), first (the earlier landmark's key), first_scan. The file's own
+    near-duplicate ids (``near_duplicate_ids``) can appear here without a loop being open."""
+    fe = getattr(res, "frontend", None)
+    if fe is None:
+        raise ValueError("res: an online run (run_victoria_park with data_association set) is needed")
+    assigned, truth = fe.observation_assignment(), np.asarray(res.truth)
+    owner, rows = {}, []
+    for t in sorted(fe.confirmed_tracks(), key=lambda t: (t.end, t.key)):
+        lid = _majority(truth[assigned == t.key])
+        if lid in owner:
+            first = owner[lid]
+            rows.append({"key": t.key, "id": lid, "scan": t.end, "first": first.key, "first_scan": first.end})
+        else:
+            owner[lid] = t
+    return rows
