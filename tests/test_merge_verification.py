@@ -158,3 +158,12 @@ def test_bad_verification_options_name_the_argument(name, value):
     g = SparseOptimizer()
     with pytest.raises(ValueError, match=name):
         OnlineFrontEnd(g, RangeBearingModel(4.0), "jcbb", **{name: value})
+
+
+def test_the_pipelines_pass_the_verification_options_on():
+    from helpers.drivebot import run_question
+    from helpers.online_slam import run_victoria_park
+    with pytest.raises(ValueError, match="verify_n_sigma"):
+        run_victoria_park("jcbb", verify_n_sigma=-1.0, known_id_reference=False)
+    with pytest.raises(ValueError, match="verify_merges"):
+        run_question("q2_b", data_association="jcbb", verify_merges="yes")
