@@ -97,3 +97,21 @@ def test_scan_probe_is_for_the_known_id_run_only():
         run_victoria_park("jcbb", scan_probe=lambda *a: None)
     with pytest.raises(ValueError, match="scan_probe"):
         run_victoria_park(None, scan_probe="not callable")
+
+
+def test_merge_outcomes_judges_merges_by_majority_id():
+    from helpers.online_slam.tracks import Track
+    tracks = [Track(key=k, birth=0, parent=None, z0=np.zeros(2), R0=np.eye(2)) for k in range(4)]
+    tracks[0].observations, tracks[1].observations = [0, 1, 2], [3, 4]        # 1 merged into 0: right
+    tracks[2].observations, tracks[3].observations = [5, 6], [7, 8]           # 3 merged into 2, then undone: wrong
+    tracks[1].alias_of = 0
+    log = [{"track": 3, "old": 2, "scan": 9, "T": 40.0, "undone": True},
+           {"track": 1, "old": 0, "scan": 4, "T": 0.5, "undone": False}]
+    res = SimpleNamespace(frontend=SimpleNamespace(tracks=tracks, merge_log=log),
+                          truth=np.array([7, 7, 7, 7, 7, 8, 8, 9, 9]))
+    rows = va.merge_outcomes(res)
+    assert [(r["track"], r["old"], r["scan"], r["wrong"], r["undone"]) for r in rows] == [(1, 0, 4, False, False),
+                                                                                        (3, 2, 9, True, True)]
+    assert rows[1]["T"] == 40.0
+    with pytest.raises(ValueError, match="res"):
+        va.merge_outcomes(SimpleNamespace(frontend=None, truth=np.zeros(1)))

@@ -55,7 +55,7 @@ __all__ = ["AssociatingSLAMSystem", "SensorCorruption", "HiddenIds", "associatio
 #: Options of the associating system that ``run_question`` accepts next to ``data_association``.
 ASSOCIATION_OPTIONS = ("n_sigma", "algorithm_options", "rules", "association_period", "association_iterations",
                        "association_algorithm", "range_margin", "association_space", "reject_ambiguous",
-                       "closure_sigma", "closure_support", "closure_patience")
+                       "closure_sigma", "closure_support", "closure_patience", "verify_merges", "verify_n_sigma")
 
 #: Seed-sequence key of the corruption's Generator (kept apart from the simulator's draws).
 _CORRUPTION_STREAM = 15
@@ -104,8 +104,8 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
     ``algorithm_options``, ``rules`` (``ConfirmationRules``), ``association_period`` and
     ``association_iterations`` (used only when ``optimization_period`` is None), ``association_algorithm``,
     ``range_margin``, ``association_space``, ``reject_ambiguous``, ``closure_sigma``, ``closure_support``,
-    ``closure_patience`` (see ``OnlineFrontEnd``). The front-end is ``self.frontend``; confirmed landmarks appear
-    in ``landmark_vertices`` under key + 1.
+    ``closure_patience``, ``verify_merges``, ``verify_n_sigma`` (see ``OnlineFrontEnd``). The front-end is
+    ``self.frontend``; confirmed landmarks appear in ``landmark_vertices`` under key + 1.
     """
 
     def __init__(self, config=None, data_association: str = "jcbb", n_sigma: float = 3.0, algorithm_options=None,
@@ -113,7 +113,7 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
                  association_algorithm: str = "lm-gtsam",
                  range_margin: float = 1.0, association_space: str = "cartesian", reject_ambiguous: bool = True,
                  closure_sigma: float = 0.5, closure_support: int = 2, closure_patience: int = 50,
-                 **slam_options):
+                 verify_merges: bool = False, verify_n_sigma: float = 3.0, **slam_options):
         super().__init__(config, **slam_options)
         self.association_period = integer(association_period, "association_period", minimum=1)
         self.association_iterations = integer(association_iterations, "association_iterations", minimum=1)
@@ -124,7 +124,8 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
                                        algorithm_options=algorithm_options, rules=rules,
                                        landmark_factory=self._new_landmark, reject_ambiguous=reject_ambiguous,
                                        closure_sigma=closure_sigma, closure_support=closure_support,
-                                       closure_patience=closure_patience)
+                                       closure_patience=closure_patience, verify_merges=verify_merges,
+                                       verify_n_sigma=verify_n_sigma)
 
     def _new_landmark(self, key, estimate):
         v = LandmarkVertex(key + 1, id=key + 1, estimate=estimate)

@@ -55,6 +55,7 @@ from .closure import LoopClosure
 from .decisions import ambiguous_pairings, individual_d2, relative_sigma, sub_problem
 from .models import motion_jacobians
 from .tracks import CONFIRMED, DROPPED, TENTATIVE, ConfirmationRules, Track
+from .verification import MergeVerification
 from .window import LocalWindow
 
 __all__ = ["OnlineFrontEnd", "ScanResult"]
@@ -84,7 +85,7 @@ def _flag(value, name):
     return bool(value)
 
 
-class OnlineFrontEnd(LoopClosure):
+class OnlineFrontEnd(LoopClosure, MergeVerification):
     """Online data association for a growing pose graph (module docstring).
 
     Parameters
@@ -98,6 +99,8 @@ class OnlineFrontEnd(LoopClosure):
     landmark_factory : callable(key, estimate) → a new landmark vertex (default ``VertexPointXY``).
     reject_ambiguous : drop pairings that have an equally good alternative (``decisions``).
     closure_sigma, closure_support, closure_patience : the loop-closure stage (module docstring, step 4).
+    verify_merges, verify_n_sigma, verify_iterations : test every merge after the next optimisation and undo the
+        refused ones, re-optimising with that many iterations (``verification``; default off).
 
     Use: ``start(first_pose)``; per new pose ``add_pose(odometry_edge)``; per scan ``process_scan(Z, R)``; after
     each optimisation ``refresh()``.
@@ -106,7 +109,8 @@ class OnlineFrontEnd(LoopClosure):
     def __init__(self, graph, model, data_association: str = "jcbb", n_sigma: float = 3.0,
                  algorithm_options=None, rules: ConfirmationRules | None = None, landmark_factory=None,
                  reject_ambiguous: bool = True, closure_sigma: float = 0.5, closure_support: int = 2,
-                 closure_patience: int = 50):
+                 closure_patience: int = 50, verify_merges: bool = False, verify_n_sigma: float = 3.0,
+                 verify_iterations: int = 10):
         self.algorithm = check_algorithm(data_association)
         self.options = check_options(self.algorithm, algorithm_options)
         self.n_sigma = positive_number(n_sigma, "n_sigma")
@@ -137,6 +141,7 @@ class OnlineFrontEnd(LoopClosure):
         self._checked_noise = {}
         ex = self.rules.exclusion_n_sigma
         self._exclusion_gate = None if ex is None else float(chi2inv(confidence_level(ex), model.dimension))
+        self._init_verification(verify_merges, verify_n_sigma, verify_iterations)
 
     # ================================================================================= poses and refreshes
     def start(self, pose_vertex) -> None:
@@ -146,6 +151,7 @@ class OnlineFrontEnd(LoopClosure):
         self.columns = MarginalColumns()
         self.columns.register_without_factorisation([pose_vertex])
         self.window.reset([pose_vertex.dimension])
+        self._note_pose(pose_vertex)
 
     def add_pose(self, edge) -> None:
         """A new current pose, ``edge.vertex(1)``, predicted from the previous one by the odometry ``edge``."""
@@ -153,10 +159,14 @@ class OnlineFrontEnd(LoopClosure):
         F, Q = motion_jacobians(edge)
         self.window.predict(F, Q)
         self.pose = edge.vertex(1)
+        self._note_pose(self.pose)
         self.stats["pose_time"] += time.perf_counter() - t0
 
     def refresh(self) -> bool:
-        """Factorise H at the graph's current estimates (structure built) and re-anchor the window."""
+        """Factorise H at the graph's current estimates (structure built) and re-anchor the window. With
+        ``verify_merges``, the merges made since the last refresh are first tested and the refused ones undone
+        (``verification``)."""
+        self._verify_pending_merges()
         t0 = time.perf_counter()
         roots = self.confirmed_tracks()
         survivors = [t for t in self.tracks if t.status == TENTATIVE]
@@ -357,6 +367,7 @@ class OnlineFrontEnd(LoopClosure):
         t.alias_of = old.key
         self._attach(t, old.vertex, scan, edges)
         result.merged.append((t.key, old.key))
+        self._note_merge(t, old, scan)
         self.stats["merges"] += 1
 
     def _attach(self, t, vertex, scan, edges):

@@ -252,14 +252,15 @@ def run_victoria_park(data_association: str | None = "jcbb", optimization_period
                       field_of_view: float = math.pi, n_sigma: float = 3.0, algorithm_options=None,
                       rules: ConfirmationRules | None = None, association_space: str = "cartesian",
                       closure_sigma: float = 2.0, closure_support: int = 1, measurement_sigmas=None,
-                      odometry_scale: float = 1.0,
+                      odometry_scale: float = 1.0, verify_merges: bool = False, verify_n_sigma: float = 3.0,
                       known_id_reference: bool = True,
                       batch_reference: bool = False, progress: bool = False,
                       scan_probe=None) -> VictoriaParkResults:
     """Process Victoria Park online with the ids hidden (module docstring). ``data_association=None`` runs the
     known-id pipeline itself; there ``scan_probe(pose estimate, Z, ids, {file id: landmark vertex})``, if given,
     is called before each scan is added (what the pipeline knows at that moment: ``vp_analysis``). Front-end
-    options as in ``OnlineFrontEnd`` (``rules`` default ``VICTORIA_PARK_RULES``)."""
+    options as in ``OnlineFrontEnd`` (``rules`` default ``VICTORIA_PARK_RULES``; ``verify_merges`` and
+    ``verify_n_sigma``: merge verification with undo, ``verification``)."""
     if scan_probe is not None and (data_association is not None or not callable(scan_probe)):
         raise ValueError("scan_probe must be a callable, and applies to the known-id run (data_association=None) "
                          f"only; got scan_probe={scan_probe!r} with data_association={data_association!r}")
@@ -275,7 +276,7 @@ def run_victoria_park(data_association: str | None = "jcbb", optimization_period
                               association_space=association_space)
     options = {"n_sigma": n_sigma, "algorithm_options": algorithm_options,
                "rules": VICTORIA_PARK_RULES if rules is None else rules, "closure_sigma": closure_sigma,
-               "closure_support": closure_support}
+               "closure_support": closure_support, "verify_merges": verify_merges, "verify_n_sigma": verify_n_sigma}
     stream = victoria_park_scans(read_dataset("victoria_park"))
     stream = _with_sigmas(stream, measurement_sigmas, odometry_scale)
     graph, fe, truth, chi2, n_opt, seconds = _process(stream, data_association, model, period, iterations,

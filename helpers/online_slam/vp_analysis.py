@@ -24,7 +24,8 @@ from ..validation import integer, positive_number
 from .victoria_park import run_victoria_park, victoria_park_scans
 
 __all__ = ["poses", "landmark_positions", "odometry_drift", "near_duplicate_ids", "known_id_nearest_neighbour",
-           "smoothed_nearest_neighbour", "plot_map"]
+           "smoothed_nearest_neighbour", "plot_map", "merge_outcomes",
+           "duplicate_landmarks"]
 
 
 def poses(res) -> np.ndarray:
@@ -195,3 +196,49 @@ def plot_map(ax, online, reference, colors) -> None:
     ax.legend(loc="best", fontsize="small")
 
 
+
+
+def _majority(ids) -> int:
+    values, counts = np.unique(np.asarray(ids, dtype=np.int64), return_counts=True)
+    return int(values[np.argmax(counts)]) if values.size else 0
+
+
+def merge_outcomes(res) -> list[dict]:
+    """Every loop-closure merge of an online run, judged against the file's ids after the fact: the merged
+    track's observations against the old landmark's own (a merge is *wrong* when their majority ids differ).
+    One row per merge (scan order): track, old, scan (−1 when not logged), wrong, undone, T (the verification's
+    statistic, NaN when not verified). Merges kept are read from the tracks, undone ones from ``merge_log``."""
+    fe = getattr(res, "frontend", None)
+    if fe is None:
+        raise ValueError("res: an online run (run_victoria_park with data_association set) is needed")
+    truth = np.asarray(res.truth)
+    logged = {(m["track"], m["old"]): m for m in getattr(fe, "merge_log", [])}
+    pairs = {(t.key, t.alias_of) for t in fe.tracks if t.alias_of >= 0} | set(logged)
+    rows = []
+    for key, old in pairs:
+        m = logged.get((key, old), {})
+        wrong = _majority(truth[fe.tracks[key].observations]) != _majority(truth[fe.tracks[old].observations])
+        scan = m.get("scan", getattr(fe, "merge_scans", {}).get(key, -1))
+        rows.append({"track": key, "old": old, "scan": scan, "wrong": bool(wrong),
+                     "undone": bool(m.get("undone", False)), "T": m.get("T", float("nan"))})
+    return sorted(rows, key=lambda r: (r["scan"], r["track"]))
+
+
+def duplicate_landmarks(res) -> list[dict]:
+    """Loops left open, after the fact: every confirmed landmark of an online run whose majority file id is the
+    majority id of a landmark confirmed before it (a tree mapped twice). One row per duplicate, in the order of
+    confirmation: key, id, scan (its confirmation), first (the earlier landmark's key), first_scan. The file's own
+    near-duplicate ids (``near_duplicate_ids``) can appear here without a loop being open."""
+    fe = getattr(res, "frontend", None)
+    if fe is None:
+        raise ValueError("res: an online run (run_victoria_park with data_association set) is needed")
+    assigned, truth = fe.observation_assignment(), np.asarray(res.truth)
+    owner, rows = {}, []
+    for t in sorted(fe.confirmed_tracks(), key=lambda t: (t.end, t.key)):
+        lid = _majority(truth[assigned == t.key])
+        if lid in owner:
+            first = owner[lid]
+            rows.append({"key": t.key, "id": lid, "scan": t.end, "first": first.key, "first_scan": first.end})
+        else:
+            owner[lid] = t
+    return rows
