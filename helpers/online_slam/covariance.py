@@ -12,7 +12,7 @@ columns give every block among them (Σ_uv = rows of u in the columns of v), at 
 or O(n²) for a dense inverse. Only the rows of the vertices registered at the factorisation are ever read, and
 the backward sweep's w_j needs only the w of the rows of L's column j, which are ancestors of j in the
 elimination tree: so each column is solved on the union of the tree paths from the registered rows to the root
-(``_solve_unit_columns_on``; same operations, same numbers, on q2_e about a fifth of the work). Columns are
+(``_solve_unit_columns_on``; same operations, same numbers, on q2_e about a sixth of the time). Columns are
 cached per vertex until the next factorisation, so a landmark that is a candidate in many scans costs its
 columns once.
 
