@@ -115,3 +115,18 @@ def test_merge_outcomes_judges_merges_by_majority_id():
     assert rows[1]["T"] == 40.0
     with pytest.raises(ValueError, match="res"):
         va.merge_outcomes(SimpleNamespace(frontend=None, truth=np.zeros(1)))
+
+
+def test_joined_ids_relabels_each_group_to_its_smallest_id():
+    truth = np.array([5, 9, 7, 3, 9, 11, 2])
+    out = va.joined_ids(truth, [(9, 7, 0.5, False), (11, 9)])      # 7–9–11 form one group; 5, 3, 2 stay
+    np.testing.assert_array_equal(out, [5, 7, 7, 3, 7, 7, 2])
+    np.testing.assert_array_equal(truth, [5, 9, 7, 3, 9, 11, 2])   # the input is not changed
+    np.testing.assert_array_equal(va.joined_ids(truth, []), truth)
+
+
+def test_joined_ids_rejects_bad_input():
+    with pytest.raises(ValueError, match="pairs\\[0\\]"):
+        va.joined_ids([1, 2], [(1,)])
+    with pytest.raises(ValueError, match="truth"):
+        va.joined_ids([[1, 2]], [])

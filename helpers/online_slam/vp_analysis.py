@@ -20,12 +20,12 @@ import numpy as np
 
 from ..datasets import read_dataset
 from ..graph import VertexPointXY, VertexSE2
-from ..validation import integer, positive_number
+from ..validation import int_array, integer, positive_number
 from .victoria_park import run_victoria_park, victoria_park_scans
 
 __all__ = ["poses", "landmark_positions", "odometry_drift", "near_duplicate_ids", "known_id_nearest_neighbour",
            "smoothed_nearest_neighbour", "plot_map", "merge_outcomes",
-           "duplicate_landmarks"]
+           "duplicate_landmarks", "joined_ids"]
 
 
 def poses(res) -> np.ndarray:
@@ -117,6 +117,29 @@ def near_duplicate_ids(reference, radius: float = 2.0) -> list[tuple]:
             d = float(np.linalg.norm(pos[a].estimate - pos[b].estimate))
             if d < radius:
                 out.append((a, b, d, (a, b) in together, count.get(a, 0), count.get(b, 0)))
+    return out
+
+
+def joined_ids(truth, pairs) -> np.ndarray:
+    """``truth`` (file ids) with the ids of every pair in ``pairs`` joined: each group of ids linked by the pairs
+    (a, b, …) — for example the never-co-observed rows of ``near_duplicate_ids`` — is relabelled to its smallest
+    id. Scoring a run against it counts one trunk labelled with two ids as one landmark."""
+    truth = int_array(truth, "truth")
+    parent = {}
+
+    def root(a):
+        while parent.get(a, a) != a:
+            a = parent[a]
+        return a
+
+    for k, pair in enumerate(pairs):
+        if len(pair) < 2:
+            raise ValueError(f"pairs[{k}] must start with two ids (a, b, ...), got {pair!r}")
+        a, b = root(int(pair[0])), root(int(pair[1]))
+        parent[max(a, b)] = min(a, b)
+    out = truth.copy()
+    for a in parent:
+        out[truth == a] = root(a)
     return out
 
 
