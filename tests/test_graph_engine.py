@@ -9,7 +9,7 @@ from helpers.graph.algorithms import (ALGORITHMS, GaussNewton, GaussNewtonParams
                                       GTSAMLevenbergMarquardtParams, LevenbergMarquardt, LevenbergMarquardtParams,
                                       Trial, make_algorithm)
 from helpers.graph.elements import GraphElements
-from helpers.graph.linearise import FreeState, LinearSystem, chi2_at, linearise, total_chi2
+from helpers.graph.linearise import FreeState, LinearSystem, chi2_at, linearise, linearise_reference, total_chi2
 from helpers.graph.marginals import marginal_blocks
 from helpers.graph.storage import EdgeStore, GrowableArray, VertexStore
 from helpers.graph.structure import EdgeClassBlock, GraphStructure, build_structure, check_gauge
@@ -124,6 +124,28 @@ def test_linearise_matches_the_public_hessian_gradient_and_chi2():
     np.testing.assert_array_equal(system.gradient, g.gradient())
     assert system.chi2 == pytest.approx(g.chi2(), rel=1e-12)
     assert chi2_at(st, est) == pytest.approx(total_chi2(g._vertex_store, g._edge_stores), rel=1e-12)
+
+
+@pytest.mark.parametrize("case", ["chain_full_information", "chain_diagonal", "w100_exp", "victoria_park_prefix"])
+def test_linearise_is_bit_for_bit_the_reference(case):
+    """The fused scatter (fast path) adds the same products in the same order as the reference's bincount."""
+    from helpers import datasets
+    from helpers.graph import VertexSE2Exp
+    if case.startswith("chain"):
+        g, _, _ = chain(7, full_information=case.endswith("information"))
+    elif case == "w100_exp":
+        g = datasets.build_optimizer(datasets.read_dataset("w100"), pose_class=VertexSE2Exp)
+    else:
+        data = datasets.read_dataset("victoria_park")
+        g = datasets.build_optimizer(data)
+        g.initialize_optimization()
+        g.optimize(2)                               # moved away from the initial estimate: landmarks and poses
+    g.initialize_optimization()
+    est = g._vertex_store.estimates.buffer
+    fast, ref = linearise(g._structure, est), linearise_reference(g._structure, est)
+    np.testing.assert_array_equal(fast.hessian_data, ref.hessian_data)
+    np.testing.assert_array_equal(fast.gradient, ref.gradient)
+    assert fast.chi2 == ref.chi2
 
 
 def test_free_state_get_set_retract_and_solve():
@@ -268,3 +290,19 @@ def test_hessian_factors_reproduce_the_permuted_hessian():
     stale = SparseOptimizer()
     with pytest.raises(GraphError, match="hessian_factors"):
         stale.hessian_factors()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_csc_unique_equals_numpy_unique_on_the_keys(seed):
+    from helpers.graph.linear import csc_unique
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 40))
+    cols = rng.integers(0, n, 300)
+    rows = rng.integers(0, cols + 1)                     # upper triangle, many repeats
+    indices, indptr, inverse = csc_unique(n, rows, cols)
+    uniq, inv = np.unique((cols << 32) | rows, return_inverse=True)
+    np.testing.assert_array_equal(indices, uniq & 0xFFFFFFFF)
+    np.testing.assert_array_equal(np.repeat(np.arange(n), np.diff(indptr)), uniq >> 32)
+    np.testing.assert_array_equal(inverse, inv)
+    empty = csc_unique(3, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
+    assert empty[0].size == 0 and empty[1].tolist() == [0, 0, 0, 0] and empty[2].size == 0

@@ -19,10 +19,10 @@ import numpy as np
 
 from .edge import check_model_output, edge_label
 from .errors import GraphError, NonFiniteError
-from .linear import batched_jte, batched_jtj, batched_matmul
+from .linear import batched_jte, batched_jtj, batched_matmul, scatter_jte, scatter_jtj
 
-__all__ = ["LinearSystem", "FreeState", "whitened_blocks", "oplus_jacobians", "chi2_at", "linearise", "total_chi2",
-           "nonfinite_error"]
+__all__ = ["LinearSystem", "FreeState", "whitened_blocks", "oplus_jacobians", "chi2_at", "linearise",
+           "linearise_reference", "total_chi2", "nonfinite_error"]
 
 
 @dataclass(frozen=True)
@@ -77,7 +77,30 @@ def chi2_at(structure, estimates):
 
 
 def linearise(structure, estimates):
-    """The ``LinearSystem`` (H data, b, χ²) at ``estimates``."""
+    """The ``LinearSystem`` (H data, b, χ²) at ``estimates``: ``linearise_reference``'s products and sums, with
+    each edge's H_kl and b_k added straight into H's CSC data and b (``scatter_jtj``, ``scatter_jte``: the same
+    additions in the same order, so the result is bit-for-bit the reference's)."""
+    n = structure.dimension
+    if n == 0:
+        return linearise_reference(structure, estimates)
+    data = np.zeros(structure.pattern.nnz + 1)                  # the last bin collects fixed-vertex terms
+    b = np.zeros(n + 1)
+    chi2, th, tb = 0.0, 0, 0
+    scatter, gradient_rows = structure.pattern.scatter, structure.gradient_rows
+    for blk, ew, jw in whitened_blocks(structure, estimates, True):
+        chi2 += float(np.einsum("ei,ei->", ew, ew))
+        ew = np.ascontiguousarray(ew)
+        jw = [np.ascontiguousarray(j) for j in jw]
+        for k in range(blk.store.slots):
+            for l in range(k, blk.store.slots):
+                th = scatter_jtj(jw[k], jw[l], k == l, scatter, th, data)
+            tb = scatter_jte(jw[k], ew, gradient_rows, tb, b)
+    return LinearSystem(data[:-1], b[:-1], chi2)
+
+
+def linearise_reference(structure, estimates):
+    """The ``LinearSystem`` (H data, b, χ²) at ``estimates``, in two plain steps: every edge's products
+    J̃_kᵀ J̃_l and J̃_kᵀ ẽ, then their sums per entry of H and b with ``np.bincount``."""
     n = structure.dimension
     hvals, bvals = [], []
     chi2 = 0.0
