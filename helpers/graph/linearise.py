@@ -3,7 +3,8 @@
 Per edge class (one ``EdgeClassBlock``, no Python loop over edges): gather the slot states, call the class's
 ``evaluate``, multiply the Jacobians of slots whose vertex class has a non-additive ⊞ by M = ∂(x ⊞ δ)/∂δ, whiten
 (ẽ = W e, J̃_k = W J_k; elementwise when W is diagonal), then χ² = Σ‖ẽ‖², b_k = J̃_kᵀ ẽ, H_kl = J̃_kᵀ J̃_l.
-The values are scattered into H's CSC data and b with ``np.bincount`` on the positions ``structure`` computed.
+The values are added into H's CSC data and b at the positions ``structure`` computed (``linear.scatter_jtj`` /
+``scatter_jte``; ``linearise_reference`` forms the products first and sums them with ``np.bincount``).
 
 ``FreeState`` is the free state vector X as the algorithms see it: read it, write it back, step it by ⊞, and
 evaluate χ² or the whole linear system at it.
