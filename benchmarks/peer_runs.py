@@ -3,8 +3,8 @@
 Each ``run_*`` returns a dict: solver, time (wall time of the optimisation call only; loading is not timed),
 iters, chi2 (GTSAM: 2 × error), hist (χ² per iteration, starting with the initial value), marg_time (all pose
 covariances), cov {pose id: 3×3 world-frame (x, y, ψ) covariance}, est {pose id: [x, y, ψ]}; helpers' run also
-build_time (``initialize_optimization()``: structure, ordering and symbolic analysis — the work GTSAM's timed
-optimiser construction and iterations include) and backend (the linear solver's backend for the pattern).
+build_time (``initialize_optimization()``: the structure; the ordering and symbolic analysis follow at the first
+factorisation, inside the timed optimisation — GTSAM's timed optimiser construction and iterations include both) and backend (the linear solver's backend for the pattern).
 helpers and GTSAM also give cpu_time (and helpers build_cpu_time): the process CPU time of the same regions — both
 run single-threaded (GTSAM's wheel has no TBB; OPENBLAS_NUM_THREADS=1), so on a shared machine the CPU-time ratio
 is the steadier one.

@@ -12,8 +12,10 @@ Factorisation. LDLᵀ by the maintained library qdldl (chosen by measurement: qd
 refactor on W10000 against cholespy 139 ms and splu 133 ms). ``qdldl.Solver`` is built once per pattern: it computes
 the AMD fill-reducing ordering P and the symbolic analysis (elimination tree, column counts of L); every later
 matrix with the same pattern goes through ``Solver.update`` (numeric factorisation only) and ``Solver.solve``.
-The solver is built in ``initialize_optimization`` on a diagonally dominant matrix with H's pattern, so its
-construction (which also factorises) never meets a zero pivot and the iterations only refactorise.
+The solver is built at the first factorisation with a new pattern, from that matrix itself (its construction
+also factorises it). qdldl's constructor refuses a zero pivot, which ``Solver.update`` reports in D instead, so
+when the first matrix is not quasi-definite the solver is built from a diagonally dominant matrix with H's pattern
+and then updated with it.
 qdldl factorises quasi-definite matrices without complaint, so positive definiteness is checked on D.
 
 CHOLMOD. When cvxopt is installed and the factor of the pattern has dense enough columns (``cholmod_backend``:
@@ -258,9 +260,9 @@ class HessianPattern:
 
 
 class LDLSolver:
-    """LDLᵀ of H through ``qdldl.Solver``: ``analyse`` builds the solver once per pattern (AMD ordering, symbolic
-    analysis, on a positive definite stand-in with that pattern), ``factor`` then only calls ``update`` (numeric
-    refactorisation) for every new matrix with that pattern (LM only changes the diagonal).
+    """LDLᵀ of H through ``qdldl.Solver``: the first ``factor`` after ``analyse`` builds the solver (AMD ordering,
+    symbolic analysis and the factorisation of that matrix), every later matrix with that pattern only goes through
+    ``update`` (numeric refactorisation; LM only changes the diagonal).
 
     ``backend``: "auto" (default) — CHOLMOD for the patterns where it pays (module docstring), qdldl otherwise;
     "qdldl" or "cholmod" force one (cholmod needs cvxopt). A change applies from the next ``analyse``;
@@ -273,6 +275,7 @@ class LDLSolver:
         self._qdldl = None
         self._cholmod = None
         self._qdldl_stale = False   # CHOLMOD factorised a matrix that qdldl has not seen
+        self._upper = None          # the pattern's upper triangle for qdldl (values replaced per matrix)
         self._trusted = False       # the last matrix was declared positive definite by its damping
         self.ok = False
         self.backend = backend
@@ -294,6 +297,8 @@ class LDLSolver:
         """"cholmod" or "qdldl": the backend of the current pattern (None before ``analyse``)."""
         if self.pattern is None:
             return None
+        if self._qdldl is None and self.pattern.n:
+            self._prepare(None)
         return "cholmod" if self._cholmod is not None else "qdldl"
 
     @property
@@ -301,6 +306,8 @@ class LDLSolver:
         """The ``qdldl.Solver`` of the current pattern holding the factor of the last factorised matrix (None when
         the pattern is empty). When CHOLMOD factorised that matrix, qdldl refactorises it here first, and its pivot
         check then also applies to ``ok``."""
+        if self._qdldl is None and self.pattern is not None and self.pattern.n:
+            self._prepare(None)
         if self._qdldl_stale:
             self._qdldl_stale = False
             self._qdldl.update(self.pattern.upper(self._cholmod.values), upper=True)
@@ -309,17 +316,41 @@ class LDLSolver:
         return self._qdldl
 
     def analyse(self, pattern):
-        """Ordering and symbolic factorisation for ``pattern`` (once per structure change)."""
+        """Take ``pattern`` as the pattern of the next matrices (once per structure change); its ordering and
+        symbolic analysis are done at the first ``factor`` (``_prepare``)."""
         self.pattern = pattern
         self.ok = False
         self._cholmod = None
+        self._qdldl = None
         self._qdldl_stale = False
-        self._qdldl = qdldl.Solver(pattern.upper(pattern.surrogate()), upper=True) if pattern.n else None
-        if pattern.n and self._backend != "qdldl" and cholmod_backend.AVAILABLE:
+        self._upper = sp.csc_matrix((np.zeros(pattern.nnz), pattern.indices, pattern.indptr),
+                                    shape=(pattern.n, pattern.n))
+        return self
+
+    def _upper_of(self, data):
+        """The upper triangle with values ``data`` as a scipy matrix for qdldl: one matrix per pattern whose values
+        are replaced (scipy's constructor checks cost more than qdldl's refactorisation of a small graph)."""
+        self._upper.data = np.ascontiguousarray(data, dtype=float)
+        return self._upper
+
+    def _prepare(self, data):
+        """qdldl's solver for the current pattern (AMD ordering, symbolic analysis and a factorisation) and the
+        backend. It factorises ``data`` when that is quasi-definite (returns True), else (or when ``data`` is None)
+        a diagonally dominant matrix with the pattern. CHOLMOD takes qdldl's ordering."""
+        pattern, factored = self.pattern, False
+        if data is not None:
+            try:
+                self._qdldl = qdldl.Solver(self._upper_of(data), upper=True)
+                factored = True
+            except RuntimeError:        # a zero pivot: qdldl's constructor refuses what update() accepts
+                pass
+        if not factored:
+            self._qdldl = qdldl.Solver(pattern.upper(pattern.surrogate()), upper=True)
+        if self._backend != "qdldl" and cholmod_backend.AVAILABLE:
             lower, _, perm = self._qdldl.factors()
             if self._backend == "cholmod" or cholmod_backend.prefers_cholmod(np.diff(lower.indptr) + 1):
                 self._cholmod = cholmod_backend.CholmodFactor(pattern, perm)
-        return self
+        return factored
 
     def _pivots_positive(self):
         d = self._qdldl.factors()[1]
@@ -343,11 +374,13 @@ class LDLSolver:
             self.ok = True
             return self
         self._trusted = damping > 1e-9 * float(np.max(np.abs(data[pattern.diag_pos])))
+        factored = self._qdldl is None and self._prepare(data)
         if self._cholmod is not None:
             self.ok = self._cholmod.factor(data, check_pivots=not self._trusted)
             self._qdldl_stale = True
             return self
-        self._qdldl.update(pattern.upper(data), upper=True)
+        if not factored:
+            self._qdldl.update(self._upper_of(data), upper=True)
         self.ok = True if self._trusted else self._pivots_positive()
         return self
 

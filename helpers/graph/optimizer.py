@@ -79,7 +79,7 @@ class SparseOptimizer(GraphElements):
 
         When vertices and edges were only added since the last build, the structure is extended instead of
         rebuilt (``structure.extend_structure``; the same arrays either way). The solver's ordering and symbolic
-        analysis are redone for every new pattern (qdldl chooses its own ordering).
+        analysis are redone for every new pattern, at its first factorisation (qdldl chooses its own ordering).
 
         Raises GaugeFreedomError if a component of free vertices is not anchored.
         """
@@ -182,7 +182,7 @@ class SparseOptimizer(GraphElements):
         """(L, d, perm) of the undamped H = Σ JᵀΩJ at the current state, Pᵀ H P = (I + L) D (I + L)ᵀ with
         P[perm[j], j] = 1 and L strictly lower (scipy CSC); None when H is not positive definite or the graph has
         no free vertex. The graph's own solver refactorises H numerically (the ordering and symbolic analysis of
-        ``initialize_optimization`` are reused) and the factor is copied out, so later changes do not affect it.
+        the current pattern are reused) and the factor is copied out, so later changes do not affect it.
         Selected columns of H⁻¹ then cost one forward and one backward sweep each."""
         system = self._current_linear_system("hessian_factors")
         if self._structure.dimension == 0:
