@@ -209,3 +209,23 @@ def test_without_cvxopt_everything_runs_on_qdldl(monkeypatch):
 def test_backend_names_are_checked():
     with pytest.raises(ValueError, match="backend must be one of"):
         LDLSolver(backend="umfpack")
+
+
+@pytest.mark.parametrize("backend", ["qdldl", "auto"])
+def test_the_first_matrix_of_a_pattern_may_be_singular_or_not_finite(backend):
+    """qdldl's constructor refuses a zero pivot (update() reports it in D): a fresh solver whose first matrix is
+    singular, indefinite or not finite reports it like a later one, and then factorises a good matrix."""
+    rng = np.random.default_rng(11)
+    pattern, good = _random_spd(rng, 30, 0.2)
+    bad = good.copy()
+    bad[pattern.diag_pos[5]] = -1.0
+    nan = good.copy()
+    nan[pattern.diag_pos[3]] = np.nan
+    b = rng.normal(size=30)
+    expected = np.linalg.solve(pattern.full_matrix(good).toarray(), b)
+    for first in (np.zeros_like(good), bad, nan):
+        solver = LDLSolver(backend=backend)
+        assert not solver.factor(pattern, first).ok
+        assert np.isnan(solver.solve(b)).all()
+        assert solver.factor(pattern, good).ok
+        np.testing.assert_allclose(solver.solve(b), expected, rtol=1e-10)
