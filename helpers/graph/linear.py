@@ -45,21 +45,26 @@ __all__ = ["HessianPattern", "LDLSolver", "batched_jtj", "batched_jte", "batched
 def batched_jtj(a, b, upper):
     """(E, m, p), (E, m, q) → Aᵀ B per edge, flattened to (E, p·q) — or, when ``upper`` (p = q), only the
     upper triangle (E, p(p+1)/2) in row-major order (matching numpy.triu_indices)."""
-    E, m, p = a.shape
+    E, _, p = a.shape
     q = b.shape[2]
     width = p * (p + 1) // 2 if upper else p * q
     out = np.empty((E, width))
     for e in range(E):
         t = 0
         for i in range(p):
-            j0 = i if upper else 0
-            for j in range(j0, q):
-                acc = 0.0
-                for r in range(m):
-                    acc += a[e, r, i] * b[e, r, j]
-                out[e, t] = acc
+            for j in range(i if upper else 0, q):
+                out[e, t] = _column_dot(a, b, e, i, j)
                 t += 1
     return out
+
+
+@njit(cache=True, inline="always")
+def _column_dot(a, b, e, i, j):
+    """Σ_r a[e, r, i] b[e, r, j]: one entry of edge e's Aᵀ B (the one summation order both products use)."""
+    acc = 0.0
+    for r in range(a.shape[1]):
+        acc += a[e, r, i] * b[e, r, j]
+    return acc
 
 
 @njit(cache=True)
@@ -82,17 +87,13 @@ def scatter_jtj(a, b, upper, positions, start, out):
     start + their count. The same additions in the same order as ``np.bincount(positions, weights=values)``, so the
     result is bit-for-bit that of ``batched_jtj`` followed by ``HessianPattern.assemble``, without the (E, p·q)
     intermediate."""
-    E, m, p = a.shape
+    E, _, p = a.shape
     q = b.shape[2]
     t = start
     for e in range(E):
         for i in range(p):
-            j0 = i if upper else 0
-            for j in range(j0, q):
-                acc = 0.0
-                for r in range(m):
-                    acc += a[e, r, i] * b[e, r, j]
-                out[positions[t]] += acc
+            for j in range(i if upper else 0, q):
+                out[positions[t]] += _column_dot(a, b, e, i, j)
                 t += 1
     return t
 
