@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from helpers.graph import (EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, GraphError, SparseOptimizer,
-                           VertexPointXY, VertexSE2)
+from helpers.graph import (BaseEdge, EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, GraphError,
+                           SparseOptimizer, VertexPointXY, VertexSE2)
 from helpers.graph.algorithms import (ALGORITHMS, GaussNewton, GaussNewtonParams, GTSAMLevenbergMarquardt,
                                       GTSAMLevenbergMarquardtParams, LevenbergMarquardt, LevenbergMarquardtParams,
                                       Trial, make_algorithm)
@@ -306,3 +306,80 @@ def test_csc_unique_equals_numpy_unique_on_the_keys(seed):
     np.testing.assert_array_equal(inverse, inv)
     empty = csc_unique(3, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
     assert empty[0].size == 0 and empty[1].tolist() == [0, 0, 0, 0] and empty[2].size == 0
+
+
+class _ThreeSlotEdge(BaseEdge):
+    """A test edge with three slots of two classes: e = p_a + p_b − (x, y) of the pose − z."""
+
+    vertex_types = (VertexPointXY, VertexSE2, VertexPointXY)
+    measurement_dimension = 2
+
+    @staticmethod
+    def error_batch(states, z, params):
+        return states[0] + states[2] - states[1][:, :2] - z
+
+
+def _random_mixed_graph(seed):
+    """Poses and points created in random order (their rows interleave), some fixed, priors, two- and three-slot
+    edges, repeated pairs, and a few removed elements."""
+    rng = np.random.default_rng(seed)
+    g = SparseOptimizer()
+    vertices = []
+    for i in range(int(rng.integers(8, 30))):
+        cls = VertexSE2 if rng.random() < 0.6 else VertexPointXY
+        v = cls(i, rng.normal(size=cls.dimension), fixed=bool(rng.random() < 0.15))
+        g.add_vertex(v)
+        vertices.append(v)
+    poses = [v for v in vertices if isinstance(v, VertexSE2)]
+    points = [v for v in vertices if isinstance(v, VertexPointXY)]
+    edges = []
+    for a, b in zip(poses, poses[1:]):
+        edges.append(EdgeSE2([a, b], measurement=rng.normal(size=3), information=np.eye(3)))
+    for _ in range(2 * len(vertices)):
+        p, q = poses[rng.integers(len(poses))], points[rng.integers(len(points))]
+        edges.append(EdgeRangeBearing([p, q], measurement=[1.0, 0.1], information=np.eye(2)))
+    for _ in range(len(vertices) // 3):
+        a, b = rng.choice(len(points), 2, replace=False)
+        edges.append(_ThreeSlotEdge([points[a], poses[rng.integers(len(poses))], points[b]],
+                                    measurement=[0.0, 0.0], information=np.eye(2)))
+    edges.append(EdgeSE2Prior([poses[0]], measurement=[0, 0, 0], information=np.eye(3)))
+    for e in edges:
+        g.add_edge(e)
+    for e in rng.choice(edges[:-1], 3, replace=False):
+        g.remove_edge(e)
+    return g
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_block_pattern_equals_the_scalar_reference(seed):
+    """``build_structure``'s pattern (from vertex blocks) is, array for array, ``HessianPattern`` built from one
+    (row, col) per scalar contribution: interleaved poses and points, fixed vertices, unary and three-slot edges,
+    removed edges, and a point seen only by a unary edge."""
+    from helpers.graph.linear import HessianPattern
+    from helpers.graph.structure import hessian_contributions
+    g = _random_mixed_graph(seed)
+    lonely = VertexPointXY(99, [0.0, 0.0])          # only its diagonal block, from a unary edge
+    g.add_vertex(lonely)
+    g.add_edge(_PointPrior([lonely], measurement=[0.0, 0.0], information=np.eye(2)))
+    structure = build_structure(g._vertex_store, g._edge_stores)
+    rows, cols, valid = [], [], []
+    for blk in structure.blocks:
+        r, c, ok, _ = hessian_contributions(blk, structure.dimension)
+        rows += r
+        cols += c
+        valid += ok
+    ref = HessianPattern(structure.dimension, np.concatenate(rows), np.concatenate(cols), np.concatenate(valid))
+    fast = structure.pattern
+    assert (fast.n, fast.nnz) == (ref.n, ref.nnz)
+    for name in ("indices", "indptr", "diag_pos", "keys", "scatter"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
+        assert getattr(fast, name).dtype == getattr(ref, name).dtype, name
+
+
+class _PointPrior(BaseEdge):
+    vertex_types = (VertexPointXY,)
+    measurement_dimension = 2
+
+    @staticmethod
+    def error_batch(states, z, params):
+        return states[0] - z

@@ -5,7 +5,8 @@ Pattern. Every edge contributes the blocks H_kl = J_kᵀ Ω J_l (k ≤ l) betwee
 triangle (row ≤ col) of all contributions, plus the full diagonal (LM damping adds μ there), is computed once per
 structure change from the edge → vertex index arrays (``csc_unique``: the distinct (row, col) entries in CSC order
 and, for every contribution, the position of its value in the CSC data array; equal to ``np.unique`` on the keys
-(col << 32) | row, from two counting-sort passes). Every iteration only adds the new values into those
+(col << 32) | row, from two counting-sort passes; ``block_pattern`` builds the same arrays from the distinct vertex
+pairs instead, the fast path ``build_structure`` uses). Every iteration only adds the new values into those
 positions (``scatter_jtj``; the reference ``linearise_reference`` does it with ``np.bincount``).
 
 Factorisation. LDLᵀ by the maintained library qdldl (chosen by measurement: qdldl 87 ms / 58 ms

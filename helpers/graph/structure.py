@@ -9,7 +9,9 @@ measurements, the whitening matrices (just their diagonals when all are diagonal
 
 Hessian pattern. Every edge contributes the blocks H_kl = J_kᵀ Ω J_l (k ≤ l) between its slots and b_k = J_kᵀ Ω e
 to its slots; the contributions are listed in the order ``linearise.linearise`` produces their values (per class,
-per slot k: H_kk, H_k(k+1), …, then b_k), and ``HessianPattern`` maps them to CSC positions once.
+per slot k: H_kk, H_k(k+1), …, then b_k), and the ``HessianPattern`` maps them to CSC positions once (built from
+the vertex blocks by ``block_pattern.pattern_from_blocks``; the same arrays as the reference constructor from one
+(row, col) per scalar contribution).
 
 Extension. When vertices and edges were only added since the last build (nothing removed, fixed, freed or
 reconnected), ``extend_structure`` builds the same structure from the old one: the new free vertices take the rows
@@ -31,6 +33,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .errors import GaugeFreedomError
+from .block_pattern import pattern_from_blocks
 from .linear import HessianPattern
 
 __all__ = ["GraphStructure", "EdgeClassBlock", "VertexGroup", "build_structure", "extend_structure", "check_gauge",
@@ -136,30 +139,36 @@ def refresh_edge_values(structure, vertex_store, edge_classes):
             structure.blocks[i] = edge_class_block(block.store, block.rows, offset, structure.hessian_index)
 
 
+def hessian_blocks(block):
+    """The block's H contributions per slot pair k ≤ l, in ``linearise``'s value order: a list of
+    (hk, hl, d_k, d_l, k == l) — the slot vertices' first rows (−1 when fixed) and dimensions."""
+    store, starts = block.store, block.hessian_start
+    dims = store.slot_dimensions
+    return [(starts[k], starts[l], dims[k], dims[l], k == l)
+            for k in range(store.slots) for l in range(k, store.slots)]
+
+
+def gradient_rows_of(block, n):
+    """Per slot k: the rows in X of the block's b contributions (n where the slot vertex is fixed)."""
+    out = []
+    for hk, dk in zip(block.hessian_start, block.store.slot_dimensions):
+        out.append(np.where(hk[:, None] >= 0, hk[:, None] + np.arange(dk), n).ravel())
+    return out
+
+
 def hessian_contributions(block, n):
     """Positions of the block's H and b contributions: lists of (rows, cols, valid) arrays of the upper-triangle
-    H entries, and of the b rows (n where the slot vertex is fixed), in ``linearise``'s value order."""
-    store = block.store
-    rows, cols, valid, gradient_rows = [], [], [], []
-    for k in range(store.slots):
-        dk = store.slot_dimensions[k]
-        hk = block.hessian_start[k]
-        for l in range(k, store.slots):
-            dl = store.slot_dimensions[l]
-            hl = block.hessian_start[l]
-            if k == l:
-                a, b = np.triu_indices(dk)
-            else:
-                a, b = np.divmod(np.arange(dk * dl), dl)
-            r = hk[:, None] + a
-            c = hl[:, None] + b
-            rows.append(np.minimum(r, c).ravel())
-            cols.append(np.maximum(r, c).ravel())
-            ok = (hk >= 0) & (hl >= 0)
-            valid.append(np.repeat(ok, len(a)))
-        brow = hk[:, None] + np.arange(dk)
-        gradient_rows.append(np.where(hk[:, None] >= 0, brow, n).ravel())
-    return rows, cols, valid, gradient_rows
+    H entries, one entry per scalar contribution, and of the b rows (n where the slot vertex is fixed), in
+    ``linearise``'s value order (the input of ``HessianPattern`` and ``HessianPattern.extended``)."""
+    rows, cols, valid = [], [], []
+    for hk, hl, dk, dl, same in hessian_blocks(block):
+        a, b = np.triu_indices(dk) if same else np.divmod(np.arange(dk * dl), dl)
+        r = hk[:, None] + a
+        c = hl[:, None] + b
+        rows.append(np.minimum(r, c).ravel())
+        cols.append(np.maximum(r, c).ravel())
+        valid.append(np.repeat((hk >= 0) & (hl >= 0), len(a)))
+    return rows, cols, valid, gradient_rows_of(block, n)
 
 
 def gauge_links(block):
@@ -184,11 +193,12 @@ def gauge_links(block):
 
 
 def build_structure(vertex_store, edge_stores):
-    """The ``GraphStructure`` of the current elements; raises GaugeFreedomError if a free component floats."""
+    """The ``GraphStructure`` of the current elements; raises GaugeFreedomError if a free component floats.
+    The Hessian pattern comes from the vertex blocks (``block_pattern``; the same arrays as ``HessianPattern``
+    from the scalar contributions)."""
     hessian_index, n, free_handles, groups, free_state_index = free_state_layout(vertex_store)
     offset = vertex_store.offset.values
-    blocks = []
-    rows_all, cols_all, valid_all, brow_all = [], [], [], []
+    blocks, pairs, brow_all = [], [], []
     link_a, link_b, anchored = [], [], []
     for store in edge_stores.values():
         rows = store.alive_rows()
@@ -196,11 +206,8 @@ def build_structure(vertex_store, edge_stores):
             continue
         block = edge_class_block(store, rows, offset, hessian_index)
         blocks.append(block)
-        r, c, ok, br = hessian_contributions(block, n)
-        rows_all += r
-        cols_all += c
-        valid_all += ok
-        brow_all += br
+        pairs += hessian_blocks(block)
+        brow_all += gradient_rows_of(block, n)
         a, b, anc = gauge_links(block)
         link_a += a
         link_b += b
@@ -208,18 +215,12 @@ def build_structure(vertex_store, edge_stores):
 
     check_gauge(free_handles, len(hessian_index), link_a, link_b, anchored, vertex_store.objects)
 
-    if rows_all:
-        rows_c = np.concatenate(rows_all)
-        cols_c = np.concatenate(cols_all)
-        valid_c = np.concatenate(valid_all)
-        brow_c = np.concatenate(brow_all)
-    else:
-        rows_c = cols_c = brow_c = np.zeros(0, dtype=np.int64)
-        valid_c = np.zeros(0, dtype=bool)
+    brow_c = np.concatenate(brow_all) if brow_all else np.zeros(0, dtype=np.int64)
+    pattern = pattern_from_blocks(n, hessian_index[free_handles], vertex_store.dimension.values[free_handles], pairs)
     return GraphStructure(
         dimension=n, handle_count=vertex_store.count, hessian_index=hessian_index, vertex_groups=groups,
         manifold=any(g.cls.oplus_jacobian_batch is not None for g in groups), free_state_index=free_state_index,
-        blocks=blocks, pattern=HessianPattern(n, rows_c, cols_c, valid_c), gradient_rows=brow_c)
+        blocks=blocks, pattern=pattern, gradient_rows=brow_c)
 
 
 def _contribution_widths(store):
