@@ -36,6 +36,7 @@ from helpers import datasets
 from helpers.datasets.graph_data import initial_values
 from helpers.recorded_peers import covariance_agreement
 from helpers.graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2, VertexSE2Exp
+from helpers.graph import cholmod_backend
 
 
 def load2d(name):
@@ -66,6 +67,10 @@ def warm_up():
             for algorithm in ("lm", "gn", "lm-gtsam"):
                 g.optimize(3, algorithm=algorithm)
             g.compute_marginals()
+    if cholmod_backend.AVAILABLE:  # the decision's kernels (only large patterns reach them)
+        pattern = g._structure.pattern
+        cholmod_backend.column_counts(pattern.n, pattern.indptr, pattern.indices,
+                                      cholmod_backend.amd_ordering(cholmod_backend.pattern_matrix(pattern)))
 
 
 def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2, data=None, backend="auto"):

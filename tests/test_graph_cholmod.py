@@ -229,3 +229,42 @@ def test_the_first_matrix_of_a_pattern_may_be_singular_or_not_finite(backend):
         assert np.isnan(solver.solve(b)).all()
         assert solver.factor(pattern, good).ok
         np.testing.assert_allclose(solver.solve(b), expected, rtol=1e-10)
+
+
+@pytest.mark.parametrize("case", ["random_0", "random_1", "random_2", "w100", "victoria_park"])
+def test_column_counts_are_those_of_qdldls_factor_under_its_ordering(case):
+    """The elimination-tree count of the decision, under qdldl's own permutation, gives the column counts of the
+    factor qdldl computes (diagonal included)."""
+    import qdldl
+    if case.startswith("random"):
+        pattern, _ = _random_spd(np.random.default_rng(int(case[-1])), 120, 0.04)
+    else:
+        pattern = load_dataset(case)._structure.pattern
+    lower, _, perm = qdldl.Solver(pattern.upper(pattern.surrogate()), upper=True).factors()
+    counts = cholmod_backend.column_counts(pattern.n, pattern.indptr, pattern.indices, perm.astype(np.int64))
+    np.testing.assert_array_equal(counts, np.diff(lower.indptr) + 1)
+
+
+@requires_cvxopt
+def test_auto_decides_once_per_size_and_builds_qdldl_only_on_demand(monkeypatch):
+    calls = []
+    counts = cholmod_backend.column_counts
+    monkeypatch.setattr(cholmod_backend, "column_counts", lambda *a: calls.append(a[0]) or counts(*a))
+    opt = load_dataset("w10000")
+    pattern, solver = opt._structure.pattern, opt.linear_solver
+    assert solver.active_backend == "cholmod" and calls == [pattern.n]
+    assert solver._qdldl is None                                     # nothing built that CHOLMOD does not need
+    opt.optimize(2, algorithm="lm-gtsam")
+    assert solver._qdldl is None
+    assert solver.qdldl is not None and solver._qdldl is not None   # the marginals' solver, on demand
+    solver.analyse(pattern)                                          # the same size: the decision stands
+    assert solver.active_backend == "cholmod" and len(calls) == 1
+    small = load_dataset("w100")._structure.pattern                  # below AUTO_MIN_NNZ: qdldl, no decision
+    assert small.nnz < cholmod_backend.AUTO_MIN_NNZ
+    assert solver.analyse(small).active_backend == "qdldl" and len(calls) == 1
+    solver.backend = "auto"                                          # a backend assignment forgets the decision
+    solver.analyse(pattern)
+    assert solver.active_backend == "cholmod" and len(calls) == 2
+    sparse = load_dataset("victoria_park")._structure.pattern        # 5 times fewer entries: decided anew
+    assert solver.analyse(sparse).active_backend == "qdldl" and len(calls) == 3
+    assert solver.analyse(sparse).active_backend == "qdldl" and len(calls) == 3

@@ -3,8 +3,8 @@
 Why. On Hessians whose factor has dense columns (many loop closures: W10000) CHOLMOD's supernodal LLᵀ, which
 works on dense blocks with BLAS, refactorises in about 0.6× qdldl's time; on the sparser graphs (W20000, Victoria
 Park, the DriveBot maps) qdldl's simplicial LDLᵀ is faster (1.2–2×) — ``benchmarks/factorisation.py``,
-``benchmarks/RESULTS.md``. ``prefers_cholmod`` decides per pattern from the column counts of qdldl's factor with
-CHOLMOD's own rule for supernodal against simplicial: supernodal pays when the factorisation's flops per non-zero
+``benchmarks/RESULTS.md``. ``prefers_cholmod`` decides per pattern from the column counts of L under an AMD ordering
+with CHOLMOD's own rule for supernodal against simplicial: supernodal pays when the factorisation's flops per non-zero
 of L reach ``SUPERNODAL_SWITCH`` (CHOLMOD's default ``supernodal_switch``, 40; the measured crossover lies at
 ≈ 30), and the factorisation is not tiny (``MIN_FLOPS``).
 
@@ -12,24 +12,32 @@ Availability. cvxopt is an optional dependency (environment markers in environme
 Windows, Linux and macOS arm64 up to CPython 3.12, none for macOS arm64 + CPython 3.13, where ``AVAILABLE`` is
 False and everything runs on qdldl.
 
-Use. ``CholmodFactor(pattern, perm)`` builds the cvxopt matrix with H's pattern and CHOLMOD's symbolic analysis
-with the given fill-reducing permutation (qdldl's AMD ordering, so both backends have the same fill) once per
-pattern; ``factor(data)`` refactorises numerically (False when CHOLMOD finds the matrix not positive definite:
+Ordering and decision. For a large pattern (at least ``AUTO_MIN_NNZ`` stored entries) ``LDLSolver`` decides
+before building any factor: ``amd_ordering`` (AMD through cvxopt, on the cvxopt matrix CHOLMOD needs anyway) and
+``column_counts`` (the elimination tree and the column counts of L under that ordering) give the flops for
+``prefers_cholmod``. Below that size, qdldl factorises without a decision: a refactorisation takes a few
+milliseconds there, and the decision (a cvxopt matrix and an ordering, ≈ 60 % of building qdldl's solver) would
+cost more than the supernodal factorisation can save in an online run that builds many such patterns.
+
+Use. ``CholmodFactor(pattern, perm)`` builds the cvxopt matrix with H's pattern (or takes the one the decision
+built) and CHOLMOD's symbolic analysis with the given fill-reducing permutation once per pattern; ``factor(data)`` refactorises numerically (False when CHOLMOD finds the matrix not positive definite:
 it raises ArithmeticError), ``solve(rhs)`` returns H⁻¹ rhs. CHOLMOD's options live in a module-level dict of
 cvxopt that every call reads; the calls here set their own options and restore the caller's afterwards.
 """
 
 import numpy as np
+from numba import njit
 
 try:
     import cvxopt
+    from cvxopt import amd as _amd
     from cvxopt import cholmod as _cholmod
 except ImportError:  # optional: no wheel on macOS arm64 + CPython 3.13
     cvxopt = None
-    _cholmod = None
+    _amd = _cholmod = None
 
-__all__ = ["AVAILABLE", "SUPERNODAL_SWITCH", "MIN_FLOPS", "factor_statistics", "prefers_cholmod", "pattern_matrix",
-           "CholmodFactor"]
+__all__ = ["AVAILABLE", "SUPERNODAL_SWITCH", "MIN_FLOPS", "AUTO_MIN_NNZ", "factor_statistics", "prefers_cholmod",
+           "pattern_matrix", "amd_ordering", "column_counts", "CholmodFactor"]
 
 #: True when cvxopt (and with it CHOLMOD) can be imported
 AVAILABLE = _cholmod is not None
@@ -37,6 +45,8 @@ AVAILABLE = _cholmod is not None
 SUPERNODAL_SWITCH = 40.0
 #: smaller factorisations stay on qdldl (the cost of the calls dominates there)
 MIN_FLOPS = 1e6
+#: patterns with fewer stored entries (upper triangle) stay on qdldl without a decision
+AUTO_MIN_NNZ = 100_000
 #: the options of every CHOLMOD call made here: supernodal LLᵀ, the given ordering only, postordered
 _OPTIONS = {"supernodal": 2, "nmethods": 1, "postorder": True}
 
@@ -55,6 +65,52 @@ def prefers_cholmod(column_counts):
         return False
     nnz, flops = factor_statistics(column_counts)
     return flops >= MIN_FLOPS and flops >= SUPERNODAL_SWITCH * nnz
+
+
+def amd_ordering(matrix):
+    """AMD fill-reducing permutation (int64, position → row) of the upper-triangle cvxopt matrix ``matrix``."""
+    return np.asarray(_amd.order(matrix, uplo="U"), dtype=np.int64).reshape(-1)
+
+
+@njit(cache=True)
+def column_counts(n, indptr, indices, perm):
+    """Non-zeros per column of L (diagonal included) for the factorisation of P H Pᵀ, H given by the CSC pattern
+    of its upper triangle, ``perm[k]`` the row of H at position k. Row k of L is the union of the elimination-tree
+    paths from the rows r < k of column k of P H Pᵀ up to k (the row subtree); walking them, with a mark per node
+    so that each is counted once per row, finds the parent of every node and counts each column."""
+    pinv = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        pinv[perm[k]] = k
+    start = np.zeros(n + 1, dtype=np.int64)                 # the permuted upper triangle, columns as lists
+    for j in range(n):
+        for q in range(indptr[j], indptr[j + 1]):
+            a, b = pinv[indices[q]], pinv[j]
+            if a != b:
+                start[max(a, b) + 1] += 1
+    for k in range(n):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    rows = np.empty(start[n], dtype=np.int64)
+    for j in range(n):
+        for q in range(indptr[j], indptr[j + 1]):
+            a, b = pinv[indices[q]], pinv[j]
+            if a != b:
+                rows[fill[max(a, b)]] = min(a, b)
+                fill[max(a, b)] += 1
+    parent = np.full(n, -1, dtype=np.int64)
+    mark = np.full(n, -1, dtype=np.int64)
+    counts = np.ones(n, dtype=np.int64)
+    for k in range(n):
+        mark[k] = k
+        for q in range(start[k], start[k + 1]):
+            i = rows[q]
+            while mark[i] != k:
+                if parent[i] == -1:
+                    parent[i] = k
+                counts[i] += 1
+                mark[i] = k
+                i = parent[i]
+    return counts
 
 
 def _call(function, *args, **kwargs):
@@ -84,7 +140,7 @@ def pattern_matrix(pattern, values=1.0):
 class CholmodFactor:
     """CHOLMOD's factorisation of matrices with one ``HessianPattern`` (upper triangle, CSC) and one ordering."""
 
-    def __init__(self, pattern, perm):
+    def __init__(self, pattern, perm, matrix=None):
         if not AVAILABLE:
             raise ImportError("the CHOLMOD backend needs cvxopt, which is not installed")
         n = pattern.n
@@ -92,7 +148,7 @@ class CholmodFactor:
         if perm.shape != (n,) or not np.array_equal(np.sort(perm), np.arange(n)):
             raise ValueError(f"CholmodFactor: perm must be a permutation of range({n})")
         self._values = cvxopt.matrix(np.zeros(pattern.nnz))
-        self._matrix = pattern_matrix(pattern)
+        self._matrix = pattern_matrix(pattern) if matrix is None else matrix
         self._view = np.asarray(self._values).reshape(-1)   # writable view of the value buffer
         self._rhs = cvxopt.matrix(np.zeros(n))
         self._rhs_view = np.asarray(self._rhs).reshape(-1)

@@ -19,12 +19,13 @@ when the first matrix is not quasi-definite the solver is built from a diagonall
 and then updated with it.
 qdldl factorises quasi-definite matrices without complaint, so positive definiteness is checked on D.
 
-CHOLMOD. When cvxopt is installed and the factor of the pattern has dense enough columns (``cholmod_backend``:
-CHOLMOD's supernodal rule on the column counts of qdldl's L), the iterations factorise with CHOLMOD's supernodal
-Cholesky instead (same ordering, ≈ 0.6× qdldl's time on W10000; qdldl stays faster on sparser graphs).
-CHOLMOD refuses a matrix that is not positive definite (``ok`` False, as qdldl's pivot check). qdldl stays the
-solver the marginals and ``hessian_factors`` read: ``LDLSolver.qdldl`` brings its factor up to date with the last
-factorised matrix when CHOLMOD did the factorisation.
+CHOLMOD. When cvxopt is installed and the pattern is large and its factor has dense enough columns
+(``cholmod_backend``: CHOLMOD's supernodal rule on the column counts of L under an AMD ordering), the iterations
+factorise with CHOLMOD's supernodal Cholesky instead (≈ 0.5× qdldl's time on W10000; qdldl stays faster on
+sparser graphs), and qdldl's solver is not built unless asked for. CHOLMOD refuses a matrix that is not positive
+definite (``ok`` False, as qdldl's pivot check). qdldl stays the solver the marginals and ``hessian_factors``
+read: ``LDLSolver.qdldl`` builds it or brings its factor up to date with the last factorised matrix when CHOLMOD
+did the factorisation.
 
 Marginals (the sparse inverse on the pattern of qdldl's L) are in ``marginals``.
 """
@@ -268,17 +269,21 @@ class LDLSolver:
 
     ``backend``: "auto" (default) — CHOLMOD for the patterns where it pays (module docstring), qdldl otherwise;
     "qdldl" or "cholmod" force one (cholmod needs cvxopt). A change applies from the next ``analyse``;
-    ``active_backend`` is the one the current pattern uses."""
+    ``active_backend`` is the one the current pattern uses. In "auto" the solver keeps its last decision for later
+    patterns whose size stays within a factor 2 of the pattern it decided on (an online run's patterns grow a few
+    entries at a time; each decision costs an ordering)."""
 
     BACKENDS = ("auto", "qdldl", "cholmod")
 
     def __init__(self, backend="auto"):
         self.pattern = None
+        self._prepared = False      # the backend of the current pattern is chosen and its solver built
         self._qdldl = None
         self._cholmod = None
         self._qdldl_stale = False   # CHOLMOD factorised a matrix that qdldl has not seen
         self._upper = None          # the pattern's upper triangle for qdldl (values replaced per matrix)
         self._trusted = False       # the last matrix was declared positive definite by its damping
+        self._decision = None       # "auto": (nnz of the pattern decided on, whether CHOLMOD was chosen)
         self.ok = False
         self.backend = backend
 
@@ -293,23 +298,28 @@ class LDLSolver:
         if value == "cholmod" and not cholmod_backend.AVAILABLE:
             raise GraphError("LDLSolver.backend 'cholmod' needs cvxopt, which is not installed")
         self._backend = value
+        self._decision = None
 
     @property
     def active_backend(self):
         """"cholmod" or "qdldl": the backend of the current pattern (None before ``analyse``)."""
         if self.pattern is None:
             return None
-        if self._qdldl is None and self.pattern.n:
+        if not self._prepared and self.pattern.n:
             self._prepare(None)
         return "cholmod" if self._cholmod is not None else "qdldl"
 
     @property
     def qdldl(self):
         """The ``qdldl.Solver`` of the current pattern holding the factor of the last factorised matrix (None when
-        the pattern is empty). When CHOLMOD factorised that matrix, qdldl refactorises it here first, and its pivot
-        check then also applies to ``ok``."""
-        if self._qdldl is None and self.pattern is not None and self.pattern.n:
+        the pattern is empty). When CHOLMOD factorised that matrix, qdldl's solver is built (once per pattern) or
+        refactorised here first, and its pivot check then also applies to ``ok``."""
+        if self.pattern is None or not self.pattern.n:
+            return None
+        if not self._prepared:
             self._prepare(None)
+        if self._qdldl is None:         # a CHOLMOD pattern: qdldl's solver only on demand
+            self._qdldl = qdldl.Solver(self.pattern.upper(self.pattern.surrogate()), upper=True)
         if self._qdldl_stale:
             self._qdldl_stale = False
             self._qdldl.update(self.pattern.upper(self._cholmod.values), upper=True)
@@ -318,10 +328,11 @@ class LDLSolver:
         return self._qdldl
 
     def analyse(self, pattern):
-        """Take ``pattern`` as the pattern of the next matrices (once per structure change); its ordering and
-        symbolic analysis are done at the first ``factor`` (``_prepare``)."""
+        """Take ``pattern`` as the pattern of the next matrices (once per structure change); the backend, its
+        ordering and symbolic analysis are settled at the first ``factor`` (``_prepare``)."""
         self.pattern = pattern
         self.ok = False
+        self._prepared = False
         self._cholmod = None
         self._qdldl = None
         self._qdldl_stale = False
@@ -335,11 +346,40 @@ class LDLSolver:
         self._upper.data = np.ascontiguousarray(data, dtype=float)
         return self._upper
 
+    def _choose_cholmod(self):
+        """(ordering, cvxopt matrix) when the current pattern is to be factorised by CHOLMOD, else None: forced by
+        ``backend``, or in "auto" for a pattern of at least ``AUTO_MIN_NNZ`` entries by CHOLMOD's rule on the column
+        counts of L under an AMD ordering (``cholmod_backend``) — or by the last decision, for a size within a
+        factor 2 of the pattern it was made on."""
+        pattern, reuse = self.pattern, False
+        if self._backend == "qdldl" or not cholmod_backend.AVAILABLE:
+            return None
+        if self._backend == "auto":
+            if pattern.nnz < cholmod_backend.AUTO_MIN_NNZ:
+                return None
+            reuse = self._decision is not None and self._decision[0] / 2 <= pattern.nnz <= 2 * self._decision[0]
+            if reuse and not self._decision[1]:
+                return None
+        matrix = cholmod_backend.pattern_matrix(pattern)
+        perm = cholmod_backend.amd_ordering(matrix)
+        if self._backend == "auto" and not reuse:
+            counts = cholmod_backend.column_counts(pattern.n, pattern.indptr, pattern.indices, perm)
+            self._decision = (pattern.nnz, cholmod_backend.prefers_cholmod(counts))
+            if not self._decision[1]:
+                return None
+        return perm, matrix
+
     def _prepare(self, data):
-        """qdldl's solver for the current pattern (AMD ordering, symbolic analysis and a factorisation) and the
-        backend. It factorises ``data`` when that is quasi-definite (returns True), else (or when ``data`` is None)
-        a diagonally dominant matrix with the pattern. CHOLMOD takes qdldl's ordering."""
+        """The backend of the current pattern and its solver: CHOLMOD's symbolic analysis (``_choose_cholmod``),
+        or qdldl's solver (AMD ordering, symbolic analysis and a factorisation). qdldl factorises ``data`` when
+        that is quasi-definite (returns True), else (or when ``data`` is None) a diagonally dominant matrix with the
+        pattern."""
         pattern, factored = self.pattern, False
+        chosen = self._choose_cholmod()
+        self._prepared = True
+        if chosen is not None:
+            self._cholmod = cholmod_backend.CholmodFactor(pattern, *chosen)
+            return False
         if data is not None:
             try:
                 self._qdldl = qdldl.Solver(self._upper_of(data), upper=True)
@@ -348,10 +388,6 @@ class LDLSolver:
                 pass
         if not factored:
             self._qdldl = qdldl.Solver(pattern.upper(pattern.surrogate()), upper=True)
-        if self._backend != "qdldl" and cholmod_backend.AVAILABLE:
-            lower, _, perm = self._qdldl.factors()
-            if self._backend == "cholmod" or cholmod_backend.prefers_cholmod(np.diff(lower.indptr) + 1):
-                self._cholmod = cholmod_backend.CholmodFactor(pattern, perm)
         return factored
 
     def _pivots_positive(self):
@@ -376,7 +412,7 @@ class LDLSolver:
             self.ok = True
             return self
         self._trusted = damping > 1e-9 * float(np.max(np.abs(data[pattern.diag_pos])))
-        factored = self._qdldl is None and self._prepare(data)
+        factored = not self._prepared and self._prepare(data)
         if self._cholmod is not None:
             self.ok = self._cholmod.factor(data, check_pivots=not self._trusted)
             self._qdldl_stale = True
