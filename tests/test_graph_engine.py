@@ -383,3 +383,25 @@ class _PointPrior(BaseEdge):
     @staticmethod
     def error_batch(states, z, params):
         return states[0] - z
+
+
+@pytest.mark.parametrize("m, d, diagonal, with_oplus", [(3, 3, True, True), (3, 3, False, True), (2, 3, False, False),
+                                                        (2, 2, True, False), (2, 3, False, True)])
+def test_whitened_jacobians_are_bit_for_bit_the_two_step_products(m, d, diagonal, with_oplus):
+    """The fused W J M equals batched_matmul(W, batched_matmul(J, M[handles])) (or w_i · (JM)_ic) exactly, and
+    numpy's products to round-off."""
+    from helpers.graph.batched import batched_matmul, whitened_jacobians
+    rng = np.random.default_rng(m * 10 + d)
+    E, H = 40, 7
+    jac = rng.normal(size=(E, m, d))
+    oplus = rng.normal(size=(H, d, d))
+    handles = rng.integers(0, H, E)
+    w = rng.normal(size=(E, m)) if diagonal else rng.normal(size=(E, m, m))
+    jm = batched_matmul(jac, oplus[handles]) if with_oplus else jac
+    expected = w[:, :, None] * jm if diagonal else batched_matmul(w, jm)
+    got = whitened_jacobians(jac[:, :, :], oplus if with_oplus else np.zeros((0, 1, 1)),
+                             handles if with_oplus else np.zeros(0, dtype=np.int64),
+                             w[:, :, None] if diagonal else w, diagonal)
+    np.testing.assert_array_equal(got, expected)
+    numpy_jm = jac @ oplus[handles] if with_oplus else jac
+    np.testing.assert_allclose(got, w[:, :, None] * numpy_jm if diagonal else w @ numpy_jm, rtol=1e-13, atol=1e-13)

@@ -122,7 +122,7 @@ information (E, m, m) or (m, m), **params)`` — vectorised validation, same res
 Performance model: adding an element is O(1) (amortised arrays); ``initialize_optimization`` is vectorised over
 edges (gather indices, Hessian pattern); the first factorisation of a pattern builds a ``qdldl.Solver`` (AMD
 ordering, symbolic LDLᵀ); each iteration calls every edge class's ``evaluate`` once, adds JᵀΩJ into H's CSC data
-(``linear.scatter_jtj``) and refactorises with ``Solver.update``. Marginals: Takahashi sparse inverse on qdldl's L (``marginals``), no dense
+(``batched.scatter_jtj``) and refactorises with ``Solver.update``. Marginals: Takahashi sparse inverse on qdldl's L (``marginals``), no dense
 inverse. Modules by responsibility: ``storage`` / ``elements`` (growable arrays, add/remove), ``structure``
 (indexing, sparsity pattern, gauge check), ``linearise`` (evaluate, whiten, assemble H and b), ``algorithms``
 (Gauss–Newton, the coursework's LM, GTSAM's LM schedule; parameter dataclasses), ``algorithms_default`` (the

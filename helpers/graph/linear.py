@@ -1,5 +1,5 @@
-"""Sparse linear algebra of the optimiser: the Hessian pattern, its LDLᵀ factorisation (qdldl), and the batched
-per-edge products (JᵀJ, Jᵀe, W J) the linearisation uses.
+"""Sparse linear algebra of the optimiser: the Hessian pattern and its LDLᵀ factorisation (qdldl); the batched
+per-edge products (JᵀJ, Jᵀe, W J) the linearisation uses are in ``batched``.
 
 Pattern. Every edge contributes the blocks H_kl = J_kᵀ Ω J_l (k ≤ l) between its free vertices. The upper
 triangle (row ≤ col) of all contributions, plus the full diagonal (LM damping adds μ there), is computed once per
@@ -7,7 +7,7 @@ structure change from the edge → vertex index arrays (``csc_unique``: the dist
 and, for every contribution, the position of its value in the CSC data array; equal to ``np.unique`` on the keys
 (col << 32) | row, from two counting-sort passes; ``block_pattern`` builds the same arrays from the distinct vertex
 pairs instead, the fast path ``build_structure`` uses). Every iteration only adds the new values into those
-positions (``scatter_jtj``; the reference ``linearise_reference`` does it with ``np.bincount``).
+positions (``batched.scatter_jtj``; the reference ``linearise_reference`` does it with ``np.bincount``).
 
 Factorisation. LDLᵀ by the maintained library qdldl (chosen by measurement: qdldl 87 ms / 58 ms
 refactor on W10000 against cholespy 139 ms and splu 133 ms). ``qdldl.Solver`` is built once per pattern: it computes
@@ -39,96 +39,7 @@ import qdldl
 from . import cholmod_backend
 from .errors import GraphError
 
-__all__ = ["HessianPattern", "LDLSolver", "batched_jtj", "batched_jte", "batched_matmul", "scatter_jtj", "scatter_jte",
-           "csc_unique"]
-
-
-@njit(cache=True)
-def batched_jtj(a, b, upper):
-    """(E, m, p), (E, m, q) → Aᵀ B per edge, flattened to (E, p·q) — or, when ``upper`` (p = q), only the
-    upper triangle (E, p(p+1)/2) in row-major order (matching numpy.triu_indices)."""
-    E, _, p = a.shape
-    q = b.shape[2]
-    width = p * (p + 1) // 2 if upper else p * q
-    out = np.empty((E, width))
-    for e in range(E):
-        t = 0
-        for i in range(p):
-            for j in range(i if upper else 0, q):
-                out[e, t] = _column_dot(a, b, e, i, j)
-                t += 1
-    return out
-
-
-@njit(cache=True, inline="always")
-def _column_dot(a, b, e, i, j):
-    """Σ_r a[e, r, i] b[e, r, j]: one entry of edge e's Aᵀ B (the one summation order both products use)."""
-    acc = 0.0
-    for r in range(a.shape[1]):
-        acc += a[e, r, i] * b[e, r, j]
-    return acc
-
-
-@njit(cache=True)
-def batched_jte(a, v):
-    """(E, m, p), (E, m) → Aᵀ v per edge, (E, p)."""
-    E, m, p = a.shape
-    out = np.empty((E, p))
-    for e in range(E):
-        for i in range(p):
-            acc = 0.0
-            for r in range(m):
-                acc += a[e, r, i] * v[e, r]
-            out[e, i] = acc
-    return out
-
-
-@njit(cache=True)
-def scatter_jtj(a, b, upper, positions, start, out):
-    """out[positions[start + t]] += v_t for the values v_t of ``batched_jtj(a, b, upper)``, in its order; returns
-    start + their count. The same additions in the same order as ``np.bincount(positions, weights=values)``, so the
-    result is bit-for-bit that of ``batched_jtj`` followed by ``HessianPattern.assemble``, without the (E, p·q)
-    intermediate."""
-    E, _, p = a.shape
-    q = b.shape[2]
-    t = start
-    for e in range(E):
-        for i in range(p):
-            for j in range(i if upper else 0, q):
-                out[positions[t]] += _column_dot(a, b, e, i, j)
-                t += 1
-    return t
-
-
-@njit(cache=True)
-def scatter_jte(a, v, positions, start, out):
-    """out[positions[start + t]] += (Aᵀ v)_t in ``batched_jte``'s order (as ``scatter_jtj``); returns the next start."""
-    E, m, p = a.shape
-    t = start
-    for e in range(E):
-        for i in range(p):
-            acc = 0.0
-            for r in range(m):
-                acc += a[e, r, i] * v[e, r]
-            out[positions[t]] += acc
-            t += 1
-    return t
-
-
-@njit(cache=True)
-def batched_matmul(a, b):
-    """(E, p, q), (E, q, r) → A B per edge (also W J: whitening of the Jacobians)."""
-    E, p, q = a.shape
-    r = b.shape[2]
-    out = np.empty((E, p, r))
-    for e in range(E):
-        for i in range(p):
-            for c in range(r):
-                acc = 0.0
-                for k in range(q):
-                    acc += a[e, i, k] * b[e, k, c]
-                out[e, i, c] = acc
-    return out
+__all__ = ["HessianPattern", "LDLSolver", "csc_unique"]
 
 
 @njit(cache=True)

@@ -3,7 +3,7 @@
 Per edge class (one ``EdgeClassBlock``, no Python loop over edges): gather the slot states, call the class's
 ``evaluate``, multiply the Jacobians of slots whose vertex class has a non-additive ⊞ by M = ∂(x ⊞ δ)/∂δ, whiten
 (ẽ = W e, J̃_k = W J_k; elementwise when W is diagonal), then χ² = Σ‖ẽ‖², b_k = J̃_kᵀ ẽ, H_kl = J̃_kᵀ J̃_l.
-The values are added into H's CSC data and b at the positions ``structure`` computed (``linear.scatter_jtj`` /
+The values are added into H's CSC data and b at the positions ``structure`` computed (``batched.scatter_jtj`` /
 ``scatter_jte``; ``linearise_reference`` forms the products first and sums them with ``np.bincount``).
 
 ``FreeState`` is the free state vector X as the algorithms see it: read it, write it back, step it by ⊞, and
@@ -20,7 +20,7 @@ import numpy as np
 
 from .edge import check_model_output, edge_label
 from .errors import GraphError, NonFiniteError
-from .linear import batched_jte, batched_jtj, batched_matmul, scatter_jte, scatter_jtj
+from .batched import batched_jte, batched_jtj, scatter_jte, scatter_jtj, whitened_jacobians
 
 __all__ = ["LinearSystem", "FreeState", "whitened_blocks", "oplus_jacobians", "chi2_at", "linearise",
            "linearise_reference", "total_chi2", "nonfinite_error"]
@@ -33,6 +33,10 @@ class LinearSystem:
     hessian_data: np.ndarray
     gradient: np.ndarray
     chi2: float
+
+
+_NO_OPLUS = np.zeros((0, 1, 1))               # whitened_jacobians' "no ⊞ Jacobian" (M = I)
+_NO_HANDLES = np.zeros(0, dtype=np.int64)
 
 
 def oplus_jacobians(structure, estimates):
@@ -56,15 +60,20 @@ def whitened_blocks(structure, estimates, jacobians):
         states = [estimates[s] for s in blk.state_index]
         e, jac = blk.store.cls.evaluate(states, blk.measurements, blk.params, jacobians=jacobians)
         check_model_output(blk.store.cls, e, jac, blk.count, jacobians)
-        if mjac is not None:
-            jac = [batched_matmul(np.ascontiguousarray(j), mjac[j.shape[2]][blk.handles[:, k]])
-                   if j.shape[2] in mjac else j for k, j in enumerate(jac)]
         if blk.diagonal_whitening:
             ew = blk.whitening * e
-            jw = None if jac is None else [blk.whitening[:, :, None] * j for j in jac]
+            w = blk.whitening[:, :, None]
         else:
             ew = batched_jte(blk.whitening_t, np.ascontiguousarray(e))
-            jw = None if jac is None else [batched_matmul(blk.whitening, np.ascontiguousarray(j)) for j in jac]
+            w = blk.whitening
+        jw = None
+        if jac is not None:                 # J̃_k = W J_k M_k (M_k = I for an additive slot)
+            jw = []
+            for k, j in enumerate(jac):
+                m = None if mjac is None else mjac.get(j.shape[2])
+                jw.append(whitened_jacobians(j, _NO_OPLUS if m is None else m,
+                                             _NO_HANDLES if m is None else blk.handles[:, k], w,
+                                             blk.diagonal_whitening))
         out.append((blk, ew, jw))
     return out
 
