@@ -75,8 +75,9 @@ def _se2_between(xi, xj, z, jacobians):
     """EdgeSE2 for E edges in one loop; the names follow the equations in ``edges2d.EdgeSE2``'s docstring."""
     n = len(z)
     e = np.empty((n, 3))
-    ji = np.zeros((n, 3, 3))
-    jj = np.zeros((n, 3, 3))
+    m = n if jacobians else 0                  # no Jacobian arrays when only the errors are asked for
+    ji = np.zeros((m, 3, 3))
+    jj = np.zeros((m, 3, 3))
     for t in range(n):
         c_i, s_i = np.cos(xi[t, 2]), np.sin(xi[t, 2])
         c_z, s_z = np.cos(z[t, 2]), np.sin(z[t, 2])
