@@ -405,3 +405,15 @@ def test_whitened_jacobians_are_bit_for_bit_the_two_step_products(m, d, diagonal
     np.testing.assert_array_equal(got, expected)
     numpy_jm = jac @ oplus[handles] if with_oplus else jac
     np.testing.assert_allclose(got, w[:, :, None] * numpy_jm if diagonal else w @ numpy_jm, rtol=1e-13, atol=1e-13)
+
+
+@pytest.mark.parametrize("m, p", [(3, 3), (2, 3), (2, 2), (1, 4)])
+def test_scatter_jtj_upper_is_scatter_jtj_of_a_diagonal_block(m, p):
+    from helpers.graph.batched import scatter_jtj, scatter_jtj_upper
+    rng = np.random.default_rng(m * 7 + p)
+    a = rng.normal(size=(30, m, p))
+    width = p * (p + 1) // 2
+    positions = rng.integers(0, 25, 30 * width + 5)              # repeated positions: the order of additions counts
+    fast, ref = np.zeros(25), np.zeros(25)
+    assert scatter_jtj_upper(a, positions, 5, fast) == scatter_jtj(a, a, True, positions, 5, ref) == 5 + 30 * width
+    np.testing.assert_array_equal(fast, ref)

@@ -20,7 +20,7 @@ import numpy as np
 
 from .edge import check_model_output, edge_label
 from .errors import GraphError, NonFiniteError
-from .batched import batched_jte, batched_jtj, scatter_jte, scatter_jtj, whitened_jacobians
+from .batched import batched_jte, batched_jtj, scatter_jte, scatter_jtj, scatter_jtj_upper, whitened_jacobians
 
 __all__ = ["LinearSystem", "FreeState", "whitened_blocks", "oplus_jacobians", "chi2_at", "linearise",
            "linearise_reference", "total_chi2", "nonfinite_error"]
@@ -102,8 +102,9 @@ def linearise(structure, estimates):
         ew = np.ascontiguousarray(ew)
         jw = [np.ascontiguousarray(j) for j in jw]
         for k in range(blk.store.slots):
-            for l in range(k, blk.store.slots):
-                th = scatter_jtj(jw[k], jw[l], k == l, scatter, th, data)
+            th = scatter_jtj_upper(jw[k], scatter, th, data)
+            for l in range(k + 1, blk.store.slots):
+                th = scatter_jtj(jw[k], jw[l], False, scatter, th, data)
             tb = scatter_jte(jw[k], ew, gradient_rows, tb, b)
     return LinearSystem(data[:-1], b[:-1], chi2)
 
