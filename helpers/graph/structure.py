@@ -61,7 +61,7 @@ class EdgeClassBlock:
     hessian_start: list        # per slot k: (E,) first row of the slot vertex in X, −1 when fixed
     measurements: np.ndarray   # (E, m)
     whitening: np.ndarray      # W (E, m, m), or its diagonal (E, m) when ``diagonal_whitening``
-    whitening_t: np.ndarray    # Wᵀ (E, m, m), contiguous
+    whitening_t: np.ndarray    # Wᵀ (E, m, m), contiguous (None when ``diagonal_whitening``)
     diagonal_whitening: bool
     params: dict               # name -> (E, *shape)
 
@@ -113,20 +113,18 @@ def free_state_layout(vertex_store):
 def edge_class_block(store, rows, offset, hessian_index):
     """The ``EdgeClassBlock`` of the given alive rows of one edge store."""
     handles = store.handles.values[rows]
-    w = store.whitening.values[rows].copy()
-    offdiag = w.copy()
+    w = store.whitening.values[rows]                     # a copy (fancy indexing)
     ar = np.arange(store.measurement_dimension)
-    offdiag[:, ar, ar] = 0.0
-    diagonal = not np.any(offdiag)
+    diagonal = np.count_nonzero(w) == np.count_nonzero(w[:, ar, ar])   # every off-diagonal entry is 0
     return EdgeClassBlock(
         store=store, rows=rows, handles=handles,
         state_index=[offset[handles[:, k]][:, None] + np.arange(d) for k, d in enumerate(store.slot_dimensions)],
         hessian_start=[hessian_index[handles[:, k]] for k in range(store.slots)],
-        measurements=store.measurements.values[rows].copy(),
-        whitening=w[:, ar, ar].copy() if diagonal else w,
-        whitening_t=np.ascontiguousarray(w.transpose(0, 2, 1)),
+        measurements=store.measurements.values[rows],
+        whitening=w[:, ar, ar] if diagonal else w,
+        whitening_t=None if diagonal else np.ascontiguousarray(w.transpose(0, 2, 1)),
         diagonal_whitening=diagonal,
-        params={k: g.values[rows].copy() for k, g in store.params.items()})
+        params={k: g.values[rows] for k, g in store.params.items()})
 
 
 def refresh_edge_values(structure, vertex_store, edge_classes):
@@ -291,7 +289,8 @@ def _joined_block(old, fresh):
         state_index=[cat(pair) for pair in zip(old.state_index, fresh.state_index)],
         hessian_start=[cat(pair) for pair in zip(old.hessian_start, fresh.hessian_start)],
         measurements=cat([old.measurements, fresh.measurements]), whitening=cat([old.whitening, fresh.whitening]),
-        whitening_t=cat([old.whitening_t, fresh.whitening_t]), diagonal_whitening=old.diagonal_whitening,
+        whitening_t=None if old.diagonal_whitening else cat([old.whitening_t, fresh.whitening_t]),
+        diagonal_whitening=old.diagonal_whitening,
         params={k: cat([v, fresh.params[k]]) for k, v in old.params.items()})
 
 
