@@ -76,8 +76,8 @@ def _se2_between(xi, xj, z, jacobians):
     n = len(z)
     e = np.empty((n, 3))
     m = n if jacobians else 0                  # no Jacobian arrays when only the errors are asked for
-    ji = np.zeros((m, 3, 3))
-    jj = np.zeros((m, 3, 3))
+    ji = np.empty((m, 3, 3))                   # every entry is written below
+    jj = np.empty((m, 3, 3))
     for t in range(n):
         c_i, s_i = np.cos(xi[t, 2]), np.sin(xi[t, 2])
         c_z, s_z = np.cos(z[t, 2]), np.sin(z[t, 2])
@@ -103,6 +103,7 @@ def _se2_between(xi, xj, z, jacobians):
         ji[t, 0, 2] = (alpha * p_x + beta * p_y) - d_x                      # V⁻¹ p − D
         ji[t, 1, 2] = (-beta * p_x + alpha * p_y) - d_y
         ji[t, 2, 2] = -1.0
+        ji[t, 2, 0] = ji[t, 2, 1] = jj[t, 2, 0] = jj[t, 2, 1] = 0.0
     return e, ji, jj
 
 
@@ -112,8 +113,8 @@ def _vehicle_kinematics(xk, xn, z, dt, jacobians):
     n = z.shape[0]
     e = np.empty((n, 3))
     m = n if jacobians else 0
-    jk = np.zeros((m, 3, 3))
-    jn = np.zeros((m, 3, 3))
+    jk = np.empty((m, 3, 3))                   # every entry is written below
+    jn = np.empty((m, 3, 3))
     for t in range(n):
         c, s = np.cos(xk[t, 2]), np.sin(xk[t, 2])
         inv_dt = 1.0 / dt[t]
@@ -129,4 +130,6 @@ def _vehicle_kinematics(xk, xn, z, dt, jacobians):
             jn[t, 0, 0], jn[t, 0, 1] = c * inv_dt, s * inv_dt
             jn[t, 1, 0], jn[t, 1, 1] = -s * inv_dt, c * inv_dt
             jn[t, 2, 2] = inv_dt
+            jk[t, 2, 0] = jk[t, 2, 1] = 0.0
+            jn[t, 0, 2] = jn[t, 1, 2] = jn[t, 2, 0] = jn[t, 2, 1] = 0.0
     return e, jk, jn
