@@ -26,6 +26,7 @@ an edge with a fixed vertex or in a unary (prior) edge. An unanchored component 
 changing χ², so H is singular: ``GaugeFreedomError`` names its vertices.
 """
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -154,13 +155,22 @@ def gradient_rows_of(block, n):
     return out
 
 
+@functools.lru_cache(maxsize=None)
+def _block_entries(dk, dl, same):
+    """(i, j) of a slot pair's contributions within its block, in ``linearise``'s order: the upper triangle row by
+    row when ``same`` (numpy.triu_indices), else the d_k × d_l block row by row (read-only arrays, cached)."""
+    a, b = np.triu_indices(dk) if same else np.divmod(np.arange(dk * dl), dl)
+    a.flags.writeable = b.flags.writeable = False
+    return a, b
+
+
 def hessian_contributions(block, n):
     """Positions of the block's H and b contributions: lists of (rows, cols, valid) arrays of the upper-triangle
     H entries, one entry per scalar contribution, and of the b rows (n where the slot vertex is fixed), in
     ``linearise``'s value order (the input of ``HessianPattern`` and ``HessianPattern.extended``)."""
     rows, cols, valid = [], [], []
     for hk, hl, dk, dl, same in hessian_blocks(block):
-        a, b = np.triu_indices(dk) if same else np.divmod(np.arange(dk * dl), dl)
+        a, b = _block_entries(dk, dl, same)
         r = hk[:, None] + a
         c = hl[:, None] + b
         rows.append(np.minimum(r, c).ravel())
