@@ -120,14 +120,16 @@ Many edges of one class at once (loaders): ``g.add_edges(EdgeClass, rows_of_vert
 information (E, m, m) or (m, m), **params)`` — vectorised validation, same result as adding them one by one.
 
 Performance model: adding an element is O(1) (amortised arrays); ``initialize_optimization`` is vectorised over
-edges (gather indices, Hessian pattern); the first factorisation of a pattern builds a ``qdldl.Solver`` (AMD
-ordering, symbolic LDLᵀ); each iteration calls every edge class's ``evaluate`` once, adds JᵀΩJ into H's CSC data
-(``batched.scatter_jtj``) and refactorises with ``Solver.update``. Marginals: Takahashi sparse inverse on qdldl's L (``marginals``), no dense
-inverse. Modules by responsibility: ``storage`` / ``elements`` (growable arrays, add/remove), ``structure``
-(indexing, sparsity pattern, gauge check), ``linearise`` (evaluate, whiten, assemble H and b), ``algorithms``
-(Gauss–Newton, the coursework's LM, GTSAM's LM schedule; parameter dataclasses), ``algorithms_default`` (the
-default algorithm), ``linear`` (qdldl LDLᵀ),
-``marginals``, ``kernels`` (compiled fast paths, each tested equal to its edge's ``evaluate_reference``).
+edges (gather indices, and the Hessian pattern laid out from the distinct vertex pairs, ``block_pattern``); the
+first factorisation of a pattern builds a ``qdldl.Solver`` (AMD ordering, symbolic LDLᵀ) — or, for a large
+pattern whose factor has dense columns, CHOLMOD's supernodal factorisation through cvxopt (``cholmod_backend``);
+each iteration calls every edge class's ``evaluate`` once, forms W J M in one pass and adds JᵀΩJ into H's CSC data
+(``batched``), and refactorises (qdldl's ``Solver.update``, or CHOLMOD's numeric step). Marginals: Takahashi
+sparse inverse on qdldl's L (``marginals``), no dense inverse. Modules by responsibility: ``storage`` / ``elements`` (growable arrays,
+add/remove), ``structure`` (indexing, sparsity pattern, gauge check), ``linearise`` (evaluate, whiten, assemble H
+and b), ``algorithms`` (Gauss–Newton, the coursework's LM, GTSAM's LM schedule; parameter dataclasses),
+``algorithms_default`` (the default algorithm), ``linear`` (the pattern and the LDLᵀ solver), ``batched`` (the
+per-edge products), ``marginals``, ``kernels`` (compiled fast paths, each tested equal to its edge's ``evaluate_reference``).
 
 Per-object API (from ``BaseEdge``): ``set_vertex(k, v)``, ``vertex(k)``, ``vertices()``, ``set_measurement``,
 ``set_information`` (must be symmetric positive definite), ``measurement``, ``information``, ``error()``,

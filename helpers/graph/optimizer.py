@@ -6,11 +6,12 @@ The class is a thin front over modules with one job each:
     elements     ``GraphElements`` (the base class): add/remove/find vertices and edges, and the hooks through
                  which vertex and edge objects read and write their values in the storage
     structure    ``initialize_optimization``: Hessian indices of the free vertices, per edge class gather arrays,
-                 the Hessian pattern, the gauge check
+                 the Hessian pattern (laid out from the vertex blocks: ``block_pattern``), the gauge check
     linearise    evaluate every edge class, whiten, assemble χ², H and b; ``FreeState`` (X as algorithms see it)
     algorithms   Gauss–Newton, the coursework's LM, GTSAM's LM schedule, with their parameters dataclasses
     algorithms_default  the default of ``optimize``: LM with GTSAM's λ schedule, SE(2) poses moved along arcs,
                  a window stopping rule (``DefaultParams``)
+    batched      the per-edge products (W J M, Jᵀ J and Jᵀ e added into H and b), compiled
     linear       the Hessian pattern and the LDLᵀ solver (qdldl; CHOLMOD via cvxopt where it pays)
     marginals    blocks of H⁻¹ by the Takahashi recursion on the LDLᵀ factor
 
