@@ -109,7 +109,7 @@ def scatter_jte(a, v, positions, start, out):
 
 @njit(cache=True)
 def batched_matmul(a, b):
-    """(E, p, q), (E, q, r) → A B per edge (also W J: whitening of the Jacobians)."""
+    """(E, p, q), (E, q, r) → A B per edge (the two-step reference of ``whitened_jacobians``)."""
     E, p, q = a.shape
     r = b.shape[2]
     out = np.empty((E, p, r))

@@ -16,8 +16,9 @@ Ordering and decision. For a large pattern (at least ``AUTO_MIN_NNZ`` stored ent
 before building any factor: ``amd_ordering`` (AMD through cvxopt, on the cvxopt matrix CHOLMOD needs anyway) and
 ``column_counts`` (the elimination tree and the column counts of L under that ordering) give the flops for
 ``prefers_cholmod``. Below that size, qdldl factorises without a decision: a refactorisation takes a few
-milliseconds there, and the decision (a cvxopt matrix and an ordering, ≈ 60 % of building qdldl's solver) would
-cost more than the supernodal factorisation can save in an online run that builds many such patterns.
+milliseconds at most there, and the decision (a cvxopt matrix and an ordering: 45–65 % of the time qdldl takes to
+build its solver, measured on Victoria Park, W10000, W20000 and the DriveBot map q2_e) would cost more than the
+supernodal factorisation can save in an online run that builds many such patterns.
 
 Use. ``CholmodFactor(pattern, perm)`` builds the cvxopt matrix with H's pattern (or takes the one the decision
 built) and CHOLMOD's symbolic analysis with the given fill-reducing permutation once per pattern; ``factor(data)`` refactorises numerically (False when CHOLMOD finds the matrix not positive definite:
