@@ -103,7 +103,7 @@ class HessianPattern:
         nvalid = len(rows)
         self.nnz = len(indices)
         self.keys = (np.repeat(diag, np.diff(indptr)) << 32) | indices   # (col << 32) | row, ascending
-        self.scatter = np.full(len(valid), self.nnz, dtype=np.int64)
+        self.scatter = np.full(len(valid), self.nnz, dtype=np.int32)     # int32: nnz < 2³¹ (as indptr)
         self.scatter[valid] = inverse[:nvalid]
         self.indices = indices.astype(np.int32)
         self.indptr = indptr.astype(np.int32)
@@ -145,7 +145,7 @@ class HessianPattern:
         placed = np.empty(len(rows), dtype=np.int64)
         placed[old] = at
         placed[~old] = self.nnz + inverse[:n_new]
-        scatter = np.full(len(valid), new.nnz, dtype=np.int64)
+        scatter = np.full(len(valid), new.nnz, dtype=np.int32)
         scatter[valid] = placed
         return new, scatter
 

@@ -344,7 +344,8 @@ def extend_structure(old, vertex_store, edge_stores, edited=()):
         return build_structure(vertex_store, edge_stores)        # raises GaugeFreedomError, naming the vertices
     pattern, scatter_new = extension
     old_scatter = np.where(old.pattern.scatter == old.pattern.nnz, pattern.nnz, old.pattern.scatter)
-    pattern.scatter = _interleave(old.blocks, plan, old_scatter, scatter_new, lambda w: w[0])
+    scatter = _interleave(old.blocks, plan, old_scatter, scatter_new, lambda w: w[0])
+    pattern.scatter = scatter.astype(np.int32, copy=False)           # the positions' dtype, as built
     old_brows = np.where(old.gradient_rows == old.dimension, n, old.gradient_rows)
     gradient_rows = _interleave(old.blocks, plan, old_brows, cat[3], lambda w: w[1])
     return GraphStructure(
