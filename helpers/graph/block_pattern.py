@@ -20,6 +20,7 @@ pairs instead of 1.4 M scalar keys (``benchmarks/RESULTS.md``).
 import numpy as np
 from numba import njit
 
+from .batched import plain_empty_int32
 from .linear import HessianPattern, csc_unique
 
 __all__ = ["pattern_from_blocks"]
@@ -99,14 +100,6 @@ def _scatter_group(hk, hl, dk, dl, same, bid, boff, indptr, diag_pos, nnz, out, 
     return t
 
 
-@njit(cache=True)
-def _empty_positions(size):
-    """An uninitialised int32 array from numba's allocator. numpy advises transparent huge pages for arrays of
-    4 MB and more, and on a host that must compact memory to provide them the first writes into W10000's 5.4 MB of
-    positions stalled for 5–33 ms from one process to the next; this plain allocation takes 5 ms every time."""
-    return np.empty(size, dtype=np.int32)
-
-
 def pattern_from_blocks(n, vertex_starts, vertex_dims, groups):
     """The ``HessianPattern`` of the contributions of ``groups``, built from vertex blocks (module docstring).
 
@@ -131,7 +124,7 @@ def pattern_from_blocks(n, vertex_starts, vertex_dims, groups):
     pattern.indices, pattern.indptr = indices, indptr.astype(np.int32)
     pattern.diag_pos, pattern.keys = diag_pos, keys
     total = sum(len(hk) * (dk * (dk + 1) // 2 if same else dk * dl) for hk, _, dk, dl, same in groups)
-    scatter = _empty_positions(total)
+    scatter = plain_empty_int32(total)               # no huge-page advice (batched)
     t, used = 0, 0
     for (hk, hl, dk, dl, same), valid in zip(groups, ok):
         bid = np.full(len(hk), -1, dtype=np.int64)

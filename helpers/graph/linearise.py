@@ -20,7 +20,8 @@ import numpy as np
 
 from .edge import check_model_output, edge_label
 from .errors import GraphError, NonFiniteError
-from .batched import batched_jte, batched_jtj, scatter_jte, scatter_jtj, scatter_jtj_upper, whitened_jacobians
+from .batched import (batched_jte, batched_jtj, plain_copy, plain_zeros, scatter_jte, scatter_jtj, scatter_jtj_upper,
+                      whitened_jacobians)
 
 __all__ = ["LinearSystem", "FreeState", "whitened_blocks", "oplus_jacobians", "chi2_at", "linearise",
            "linearise_reference", "total_chi2", "nonfinite_error"]
@@ -93,7 +94,7 @@ def linearise(structure, estimates):
     n = structure.dimension
     if n == 0:
         return linearise_reference(structure, estimates)
-    data = np.zeros(structure.pattern.nnz + 1)                  # the last bin collects fixed-vertex terms
+    data = plain_zeros(structure.pattern.nnz + 1)               # the last bin collects fixed-vertex terms
     b = np.zeros(n + 1)
     chi2, th, tb = 0.0, 0, 0
     scatter, gradient_rows = structure.pattern.scatter, structure.gradient_rows
@@ -239,7 +240,7 @@ class FreeState:
         pattern = self.structure.pattern
         if damping is None:
             return self.solver.factor(pattern, system.hessian_data).solve(system.gradient)
-        damped = system.hessian_data.copy()
+        damped = plain_copy(system.hessian_data)
         damped[pattern.diag_pos] += damping
         return self.solver.factor(pattern, damped, damping=damping).solve(system.gradient)
 
