@@ -4,7 +4,9 @@ positions (``scatter_jtj``, ``scatter_jte``), and the whitened Jacobians W J M (
 ⊞ Jacobian of the slot's vertex, W the edge's whitening matrix or its diagonal).
 
 Every product sums in one fixed order (``_column_dot`` and the loops below), so a fused kernel and the two-step
-reference give bit-for-bit the same numbers (``tests/test_graph_engine.py``).
+reference give bit-for-bit the same numbers (``tests/test_graph_engine.py``). The large work arrays of an
+iteration come from ``plain_zeros`` / ``plain_copy`` / ``plain_empty_int32`` (numba's allocator: no huge-page
+advice, see the comment above them).
 """
 
 import numpy as np
