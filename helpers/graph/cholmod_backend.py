@@ -68,6 +68,19 @@ def prefers_cholmod(column_counts):
     return flops >= MIN_FLOPS and flops >= SUPERNODAL_SWITCH * nnz
 
 
+def _require_cvxopt():
+    if not AVAILABLE:
+        raise ImportError("the CHOLMOD backend needs cvxopt, which is not installed")
+
+
+def _permutation(perm, n, where):
+    """``perm`` as int64 after checking that it is a permutation of range(n) (ValueError naming ``where``)."""
+    perm = np.asarray(perm, dtype=np.int64)
+    if perm.shape != (n,) or not np.array_equal(np.sort(perm), np.arange(n)):
+        raise ValueError(f"{where}: perm must be a permutation of range({n})")
+    return perm
+
+
 def amd_ordering(matrix):
     """AMD fill-reducing permutation (int64, position → row) of the upper-triangle cvxopt matrix ``matrix``."""
     return np.asarray(_amd.order(matrix, uplo="U"), dtype=np.int64).reshape(-1)
@@ -129,8 +142,7 @@ def _call(function, *args, **kwargs):
 def pattern_matrix(pattern, values=1.0):
     """The upper triangle of H as a cvxopt ``spmatrix`` on ``pattern`` (CSC values ``values``, or one scalar).
     cvxopt orders the entries by column, then row: the pattern's own CSC order, so the value buffers line up."""
-    if not AVAILABLE:
-        raise ImportError("the CHOLMOD backend needs cvxopt, which is not installed")
+    _require_cvxopt()
     cols = np.repeat(np.arange(pattern.n, dtype=np.int64), np.diff(pattern.indptr))
     if not np.isscalar(values):
         values = cvxopt.matrix(np.ascontiguousarray(values, dtype=float))
@@ -142,12 +154,9 @@ class CholmodFactor:
     """CHOLMOD's factorisation of matrices with one ``HessianPattern`` (upper triangle, CSC) and one ordering."""
 
     def __init__(self, pattern, perm, matrix=None):
-        if not AVAILABLE:
-            raise ImportError("the CHOLMOD backend needs cvxopt, which is not installed")
+        _require_cvxopt()
         n = pattern.n
-        perm = np.asarray(perm, dtype=np.int64)
-        if perm.shape != (n,) or not np.array_equal(np.sort(perm), np.arange(n)):
-            raise ValueError(f"CholmodFactor: perm must be a permutation of range({n})")
+        perm = _permutation(perm, n, "CholmodFactor")
         self._values = cvxopt.matrix(np.zeros(pattern.nnz))
         self._matrix = pattern_matrix(pattern) if matrix is None else matrix
         self._view = np.asarray(self._values).reshape(-1)   # writable view of the value buffer

@@ -230,7 +230,7 @@ class LDLSolver:
         if not self._prepared:
             self._prepare(None)
         if self._qdldl is None:         # a CHOLMOD pattern: qdldl's solver only on demand
-            self._qdldl = qdldl.Solver(self.pattern.upper(self.pattern.surrogate()), upper=True)
+            self._qdldl = self._stand_in_solver()
         if self._qdldl_stale:
             self._qdldl_stale = False
             self._qdldl.update(self.pattern.upper(self._cholmod.values), upper=True)
@@ -256,6 +256,10 @@ class LDLSolver:
         are replaced (scipy's constructor checks cost more than qdldl's refactorisation of a small graph)."""
         self._upper.data = np.ascontiguousarray(data, dtype=float)
         return self._upper
+
+    def _stand_in_solver(self):
+        """qdldl's solver for the current pattern, built from a diagonally dominant matrix with that pattern."""
+        return qdldl.Solver(self.pattern.upper(self.pattern.surrogate()), upper=True)
 
     def _choose_cholmod(self):
         """(ordering, cvxopt matrix) when the current pattern is to be factorised by CHOLMOD, else None: forced by
@@ -298,7 +302,7 @@ class LDLSolver:
             except RuntimeError:        # a zero pivot: qdldl's constructor refuses what update() accepts
                 pass
         if not factored:
-            self._qdldl = qdldl.Solver(pattern.upper(pattern.surrogate()), upper=True)
+            self._qdldl = self._stand_in_solver()
         return factored
 
     def _pivots_positive(self):
