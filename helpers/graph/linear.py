@@ -247,14 +247,16 @@ class LDLSolver:
         self._cholmod = None
         self._qdldl = None
         self._qdldl_stale = False
-        self._upper = sp.csc_matrix((np.zeros(pattern.nnz), pattern.indices, pattern.indptr),
-                                    shape=(pattern.n, pattern.n))
+        self._upper = None
         return self
 
     def _upper_of(self, data):
         """The upper triangle with values ``data`` as a scipy matrix for qdldl: one matrix per pattern whose values
         are replaced (scipy's constructor checks cost more than qdldl's refactorisation of a small graph)."""
-        self._upper.data = np.ascontiguousarray(data, dtype=float)
+        data = np.ascontiguousarray(data, dtype=float)
+        if self._upper is None:             # built at the first use (a CHOLMOD pattern may never need it)
+            self._upper = self.pattern.upper(data)
+        self._upper.data = data
         return self._upper
 
     def _stand_in_solver(self):

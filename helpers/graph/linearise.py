@@ -101,7 +101,6 @@ def linearise(structure, estimates):
     for blk, ew, jw in whitened_blocks(structure, estimates, True):
         chi2 += float(np.einsum("ei,ei->", ew, ew))
         ew = np.ascontiguousarray(ew)
-        jw = [np.ascontiguousarray(j) for j in jw]
         for k in range(blk.store.slots):
             th = scatter_jtj_upper(jw[k], scatter, th, data)
             for l in range(k + 1, blk.store.slots):
@@ -119,7 +118,6 @@ def linearise_reference(structure, estimates):
     for blk, ew, jw in whitened_blocks(structure, estimates, True):
         chi2 += float(np.einsum("ei,ei->", ew, ew))
         nv = blk.store.slots
-        jw = [np.ascontiguousarray(j) for j in jw]
         for k in range(nv):
             jk = jw[k]
             for l in range(k, nv):
