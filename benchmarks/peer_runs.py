@@ -69,8 +69,7 @@ def warm_up():
             g.compute_marginals()
     if cholmod_backend.AVAILABLE:  # the decision's kernels (only large patterns reach them)
         pattern = g._structure.pattern
-        cholmod_backend.column_counts(pattern.n, pattern.indptr, pattern.indices,
-                                      cholmod_backend.amd_ordering(cholmod_backend.pattern_matrix(pattern)))
+        cholmod_backend.column_counts(pattern, cholmod_backend.amd_ordering(cholmod_backend.pattern_matrix(pattern)))
 
 
 def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2, data=None, backend="auto"):

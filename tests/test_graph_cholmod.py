@@ -241,7 +241,7 @@ def test_column_counts_are_those_of_qdldls_factor_under_its_ordering(case):
     else:
         pattern = load_dataset(case)._structure.pattern
     lower, _, perm = qdldl.Solver(pattern.upper(pattern.surrogate()), upper=True).factors()
-    counts = cholmod_backend.column_counts(pattern.n, pattern.indptr, pattern.indices, perm.astype(np.int64))
+    counts = cholmod_backend.column_counts(pattern, perm)
     np.testing.assert_array_equal(counts, np.diff(lower.indptr) + 1)
 
 
@@ -249,7 +249,7 @@ def test_column_counts_are_those_of_qdldls_factor_under_its_ordering(case):
 def test_auto_decides_once_per_size_and_builds_qdldl_only_on_demand(monkeypatch):
     calls = []
     counts = cholmod_backend.column_counts
-    monkeypatch.setattr(cholmod_backend, "column_counts", lambda *a: calls.append(a[0]) or counts(*a))
+    monkeypatch.setattr(cholmod_backend, "column_counts", lambda *a: calls.append(a[0].n) or counts(*a))
     opt = load_dataset("w10000")
     pattern, solver = opt._structure.pattern, opt.linear_solver
     assert solver.active_backend == "cholmod" and calls == [pattern.n]
@@ -268,3 +268,16 @@ def test_auto_decides_once_per_size_and_builds_qdldl_only_on_demand(monkeypatch)
     sparse = load_dataset("victoria_park")._structure.pattern        # 5 times fewer entries: decided anew
     assert solver.analyse(sparse).active_backend == "qdldl" and len(calls) == 3
     assert solver.analyse(sparse).active_backend == "qdldl" and len(calls) == 3
+
+
+def test_column_counts_and_the_ordering_reject_bad_input_by_name():
+    pattern = load_dataset("w100")._structure.pattern
+    for perm in (np.arange(pattern.n - 1), np.zeros(pattern.n, dtype=int), np.arange(pattern.n, dtype=float)):
+        with pytest.raises(ValueError, match=r"column_counts: perm must be a permutation of range\(297\)"):
+            cholmod_backend.column_counts(pattern, perm)
+    if cholmod_backend.AVAILABLE:
+        with pytest.raises(ValueError, match="amd_ordering: matrix must be a square cvxopt spmatrix"):
+            cholmod_backend.amd_ordering(pattern.upper(np.ones(pattern.nnz)))
+    else:
+        with pytest.raises(ImportError, match="needs cvxopt"):
+            cholmod_backend.amd_ordering(None)

@@ -417,3 +417,39 @@ def test_scatter_jtj_upper_is_scatter_jtj_of_a_diagonal_block(m, p):
     fast, ref = np.zeros(25), np.zeros(25)
     assert scatter_jtj_upper(a, positions, 5, fast) == scatter_jtj(a, a, True, positions, 5, ref) == 5 + 30 * width
     np.testing.assert_array_equal(fast, ref)
+
+
+def test_the_batched_helpers_and_the_block_pattern_reject_bad_input_by_name():
+    from helpers.graph.batched import (plain_copy, plain_empty_int32, plain_zeros, scatter_jtj_upper,
+                                       whitened_jacobians)
+    from helpers.graph.block_pattern import pattern_from_blocks
+    jac, oplus, handles = np.ones((4, 3, 3)), np.ones((2, 3, 3)), np.array([0, 1, 1, 0])
+    with pytest.raises(ValueError, match="jac must have shape"):
+        whitened_jacobians(np.ones((4, 3)), oplus, handles, np.ones((4, 3, 1)), True)
+    with pytest.raises(ValueError, match=r"whitening must have shape \(4, 3, 3\)"):
+        whitened_jacobians(jac, oplus, handles, np.ones((4, 3, 1)), False)
+    with pytest.raises(ValueError, match="handles must have shape"):
+        whitened_jacobians(jac, oplus, handles[:3], np.ones((4, 3, 1)), True)
+    with pytest.raises(ValueError, match=r"handles must lie in \[0, 2\)"):
+        whitened_jacobians(jac, oplus, np.array([0, 1, 2, 0]), np.ones((4, 3, 1)), True)
+    with pytest.raises(ValueError, match="positions must hold"):
+        scatter_jtj_upper(jac, np.zeros(10, dtype=np.int32), 0, np.zeros(5))
+    with pytest.raises(ValueError, match="a must have shape"):
+        scatter_jtj_upper(np.ones((4, 3)), np.zeros(30, dtype=np.int32), 0, np.zeros(5))
+    for make in (plain_zeros, plain_empty_int32):
+        with pytest.raises(ValueError, match="size"):
+            make(-1)
+        with pytest.raises(ValueError, match="size"):
+            make(2.5)
+    with pytest.raises(ValueError, match="1-D float64"):
+        plain_copy(np.ones((2, 2)))
+    hk = np.array([0, -1])
+    with pytest.raises(ValueError, match="must tile the rows"):
+        pattern_from_blocks(6, [0, 4], [3, 3], [(hk, hk, 3, 3, True)])
+    with pytest.raises(ValueError, match="group 0: every hl must be −1 or the first row of a vertex of dimension 3"):
+        pattern_from_blocks(6, [0, 3], [3, 3], [(hk, np.array([4, -1]), 3, 3, False)])
+    with pytest.raises(ValueError, match="group 0: every hk"):
+        pattern_from_blocks(6, [0, 3], [3, 3], [(np.array([9, 0]), hk, 3, 3, False)])
+    with pytest.raises(ValueError, match="1-D arrays of one length"):
+        pattern_from_blocks(6, [0, 3], [3, 3], [(hk, np.array([0]), 3, 3, False)])
+    assert plain_zeros(3).tolist() == [0.0, 0.0, 0.0] and plain_empty_int32(0).dtype == np.int32

@@ -12,6 +12,8 @@ advice, see the comment above them).
 import numpy as np
 from numba import njit
 
+from ..validation import integer
+
 __all__ = ["batched_jtj", "batched_jte", "batched_matmul", "scatter_jtj", "scatter_jtj_upper", "scatter_jte",
            "whitened_jacobians", "plain_zeros", "plain_copy", "plain_empty_int32"]
 
@@ -74,8 +76,8 @@ def scatter_jtj(a, b, upper, positions, start, out):
 
 
 @njit(cache=True)
-def scatter_jtj_upper(a, positions, start, out):
-    """``scatter_jtj(a, a, True, ...)``: the upper triangle of AᵀA (a diagonal block H_kk), the same additions in
+def _scatter_jtj_upper(a, positions, start, out):
+    """The kernel of ``scatter_jtj_upper``: ``scatter_jtj(a, a, True, ...)``, the upper triangle of AᵀA (a diagonal block H_kk), the same additions in
     the same order. The entries (i, j) are enumerated from index lists: one loop of fixed length per edge, and A
     read once, run in about 0.6× the time of the triangle's nested loops."""
     E, _, p = a.shape
@@ -93,6 +95,19 @@ def scatter_jtj_upper(a, positions, start, out):
         t += width
     return t
 
+
+
+def scatter_jtj_upper(a, positions, start, out):
+    """``scatter_jtj(a, a, True, positions, start, out)`` (the upper triangle of AᵀA, a diagonal block H_kk) by
+    ``_scatter_jtj_upper``; returns the next start. ValueError when ``a`` is not (E, m, p) or ``positions`` holds
+    fewer than start + E·p(p+1)/2 entries. The positions themselves are trusted (they come from the pattern)."""
+    if np.ndim(a) != 3:
+        raise ValueError(f"scatter_jtj_upper: a must have shape (E, m, p), got {np.shape(a)}")
+    E, _, p = a.shape
+    if start < 0 or len(positions) < start + E * p * (p + 1) // 2:
+        raise ValueError(f"scatter_jtj_upper: positions must hold start + {E * p * (p + 1) // 2} entries from "
+                         f"start {start}, got {len(positions)}")
+    return _scatter_jtj_upper(a, positions, start, out)
 
 @njit(cache=True)
 def scatter_jte(a, v, positions, start, out):
@@ -126,12 +141,13 @@ def batched_matmul(a, b):
 
 
 @njit(cache=True)
-def whitened_jacobians(jac, oplus, handles, whitening, diagonal):
-    """J̃ = W J M per edge, (E, m, d): ``jac`` J (E, m, d); M = ``oplus[handles[e]]`` (the ⊞ Jacobian of the
+def _whitened_jacobians(jac, oplus, handles, whitening, diagonal):
+    """The kernel of ``whitened_jacobians``: J̃ = W J M per edge, (E, m, d): ``jac`` J (E, m, d); M = ``oplus[handles[e]]`` (the ⊞ Jacobian of the
     slot's vertex; skipped when ``handles`` is empty, M = I); W = ``whitening`` (E, m, m), or its diagonal as
     (E, m, 1) when ``diagonal``. The same products in the same order as ``batched_matmul(J, M[handles])``
     followed by ``batched_matmul(W, ·)`` (or the elementwise w_i · (JM)_ic), without the intermediate arrays;
-    one plain loop per case (a branch inside the loops costs half the time)."""
+    one plain loop per case (a branch inside the loops costs half the time). Arguments as ``whitened_jacobians``
+    checks them."""
     E, m, d = jac.shape
     out = np.empty((E, m, d))
     if handles.size > 0 and diagonal:
@@ -172,24 +188,59 @@ def whitened_jacobians(jac, oplus, handles, whitening, diagonal):
     return out
 
 
+
+def whitened_jacobians(jac, oplus, handles, whitening, diagonal):
+    """J̃ = W J M per edge, (E, m, d), checked (``_whitened_jacobians`` computes it): ``jac`` J (E, m, d); M =
+    ``oplus[handles[e]]`` (the ⊞ Jacobians (H, d, d) of the vertices; ``handles`` empty: M = I); W =
+    ``whitening`` (E, m, m), or its diagonal as (E, m, 1) when ``diagonal``. ValueError naming the argument when
+    a shape does not fit or a handle is outside [0, H)."""
+    if np.ndim(jac) != 3:
+        raise ValueError(f"whitened_jacobians: jac must have shape (E, m, d), got {np.shape(jac)}")
+    E, m, d = jac.shape
+    want = (E, m, 1) if diagonal else (E, m, m)
+    if np.shape(whitening) != want:
+        raise ValueError(f"whitened_jacobians: whitening must have shape {want}, got {np.shape(whitening)}")
+    if np.size(handles):
+        if np.shape(handles) != (E,) or np.ndim(oplus) != 3 or np.shape(oplus)[1:] != (d, d):
+            raise ValueError(f"whitened_jacobians: handles must have shape ({E},) and oplus (H, {d}, {d}), got "
+                             f"{np.shape(handles)} and {np.shape(oplus)}")
+        if handles.min() < 0 or handles.max() >= oplus.shape[0]:
+            raise ValueError(f"whitened_jacobians: handles must lie in [0, {oplus.shape[0]})")
+    return _whitened_jacobians(jac, oplus, handles, whitening, bool(diagonal))
+
 # Large work arrays allocated by numba's runtime. numpy advises transparent huge pages for every array of 4 MB or
 # more; where the kernel must compact memory to provide them, the first writes into such an array stall (W10000's
 # 5.4 MB of scatter positions: 5–33 ms from one process to the next, against 5 ms every time allocated here).
 
 
 @njit(cache=True)
-def plain_zeros(size):
-    """np.zeros(size) (float64) without huge-page advice (see above)."""
+def _zeros(size):
     return np.zeros(size)
 
 
 @njit(cache=True)
-def plain_copy(a):
-    """a.copy() of a 1-D float64 array without huge-page advice (see above)."""
-    return a.copy()
+def _empty_int32(size):
+    return np.empty(size, dtype=np.int32)
+
+
+def plain_zeros(size):
+    """np.zeros(size) (float64) without huge-page advice (see above); ``size`` an integer ≥ 0."""
+    return _zeros(integer(size, "size", minimum=0))
 
 
 @njit(cache=True)
+def _copy(a):
+    return a.copy()
+
+
+def plain_copy(a):
+    """a.copy() of a 1-D float64 array without huge-page advice (see above)."""
+    if not isinstance(a, np.ndarray) or a.ndim != 1 or a.dtype != np.float64:
+        raise ValueError(f"plain_copy: a must be a 1-D float64 array, got {type(a).__name__} "
+                         f"{getattr(a, 'dtype', '')} {np.shape(a)}")
+    return _copy(a)
+
+
 def plain_empty_int32(size):
-    """An uninitialised int32 array of ``size`` entries without huge-page advice (see above)."""
-    return np.empty(size, dtype=np.int32)
+    """An uninitialised int32 array of ``size`` entries (an integer ≥ 0) without huge-page advice (see above)."""
+    return _empty_int32(integer(size, "size", minimum=0))

@@ -100,19 +100,46 @@ def _scatter_group(hk, hl, dk, dl, same, bid, boff, indptr, diag_pos, nnz, out, 
     return t
 
 
+def _vertex_layout(n, vertex_starts, vertex_dims):
+    """(starts, dimensions, ordinal of each start row) after checking that the vertices tile rows 0 … n−1."""
+    vstart = np.ascontiguousarray(vertex_starts, dtype=np.int64)
+    vdim = np.ascontiguousarray(vertex_dims, dtype=np.int64)
+    ends = vstart + vdim
+    if vstart.ndim != 1 or vdim.shape != vstart.shape or np.any(vdim < 1) \
+            or (vstart.size and (vstart[0] != 0 or ends[-1] != n or np.any(vstart[1:] != ends[:-1]))) \
+            or (vstart.size == 0 and n != 0):
+        raise ValueError(f"pattern_from_blocks: vertex_starts and vertex_dims must tile the rows 0 … {n - 1} "
+                         "(starts ascending, each the previous start plus its dimension, dimensions ≥ 1)")
+    ordinal = np.full(n + 1, -1, dtype=np.int64)
+    ordinal[vstart] = np.arange(vstart.size)
+    return vstart, vdim, ordinal
+
+
+def _check_group(g, hk, hl, dk, dl, valid, ordinal, vdim):
+    """ValueError naming group ``g`` unless its slots' rows are −1 or a vertex's first row of dimension d_k, d_l."""
+    if hk.ndim != 1 or hl.shape != hk.shape:
+        raise ValueError(f"pattern_from_blocks: group {g}: hk and hl must be 1-D arrays of one length, got shapes "
+                         f"{hk.shape} and {hl.shape}")
+    for rows, d, name in ((hk, dk, "hk"), (hl, dl, "hl")):
+        used = rows[valid]
+        inside = (used >= 0) & (used < len(ordinal) - 1)
+        if not inside.all() or np.any(ordinal[used] < 0) or np.any(vdim[ordinal[used]] != d):
+            raise ValueError(f"pattern_from_blocks: group {g}: every {name} must be −1 or the first row of a vertex "
+                             f"of dimension {d}")
+
+
 def pattern_from_blocks(n, vertex_starts, vertex_dims, groups):
     """The ``HessianPattern`` of the contributions of ``groups``, built from vertex blocks (module docstring).
 
     ``vertex_starts``/``vertex_dims``: first row and dimension of every free vertex, starts ascending and
     contiguous (they tile 0 … n−1); ``groups``: in ``linearise``'s order, one (hk, hl, dk, dl, same) per slot pair
     of every edge class — the slots' first rows (−1 for a fixed vertex), dimensions, and whether k = l."""
-    vstart = np.ascontiguousarray(vertex_starts, dtype=np.int64)
-    vdim = np.ascontiguousarray(vertex_dims, dtype=np.int64)
-    ordinal = np.full(n + 1, -1, dtype=np.int64)
-    ordinal[vstart] = np.arange(vstart.size)
+    vstart, vdim, ordinal = _vertex_layout(n, vertex_starts, vertex_dims)
     bu, bv, ok = [], [], []
-    for hk, hl, _, _, _ in groups:
+    for g, (hk, hl, dk, dl, _) in enumerate(groups):
+        hk, hl = np.asarray(hk), np.asarray(hl)
         valid = (hk >= 0) & (hl >= 0)
+        _check_group(g, hk, hl, dk, dl, valid, ordinal, vdim)
         u, v = ordinal[np.minimum(hk, hl)[valid]], ordinal[np.maximum(hk, hl)[valid]]
         bu.append(u)
         bv.append(v)

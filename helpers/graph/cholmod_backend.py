@@ -75,19 +75,33 @@ def _require_cvxopt():
 
 def _permutation(perm, n, where):
     """``perm`` as int64 after checking that it is a permutation of range(n) (ValueError naming ``where``)."""
-    perm = np.asarray(perm, dtype=np.int64)
-    if perm.shape != (n,) or not np.array_equal(np.sort(perm), np.arange(n)):
-        raise ValueError(f"{where}: perm must be a permutation of range({n})")
-    return perm
+    perm = np.asarray(perm)
+    if perm.shape != (n,) or (perm.size and not np.issubdtype(perm.dtype, np.integer)) \
+            or not np.array_equal(np.sort(perm), np.arange(n)):
+        raise ValueError(f"{where}: perm must be a permutation of range({n}), got shape {perm.shape}, "
+                         f"dtype {perm.dtype}")
+    return np.ascontiguousarray(perm, dtype=np.int64)
 
 
 def amd_ordering(matrix):
-    """AMD fill-reducing permutation (int64, position → row) of the upper-triangle cvxopt matrix ``matrix``."""
+    """AMD fill-reducing permutation (int64, position → row) of the upper-triangle cvxopt matrix ``matrix``
+    (square ``spmatrix``, e.g. ``pattern_matrix``)."""
+    _require_cvxopt()
+    if not isinstance(matrix, cvxopt.spmatrix) or matrix.size[0] != matrix.size[1]:
+        raise ValueError(f"amd_ordering: matrix must be a square cvxopt spmatrix, got {type(matrix).__name__}")
     return np.asarray(_amd.order(matrix, uplo="U"), dtype=np.int64).reshape(-1)
 
 
+def column_counts(pattern, perm):
+    """Non-zeros per column of L (diagonal included) for the factorisation of P H Pᵀ, H with the ``HessianPattern``
+    ``pattern``, ``perm[k]`` its row at position k (``_column_counts``); ValueError unless ``perm`` is a
+    permutation of range(n)."""
+    perm = _permutation(perm, pattern.n, "column_counts")
+    return _column_counts(pattern.n, pattern.indptr, pattern.indices, perm)
+
+
 @njit(cache=True)
-def column_counts(n, indptr, indices, perm):
+def _column_counts(n, indptr, indices, perm):
     """Non-zeros per column of L (diagonal included) for the factorisation of P H Pᵀ, H given by the CSC pattern
     of its upper triangle, ``perm[k]`` the row of H at position k. Row k of L is the union of the elimination-tree
     paths from the rows r < k of column k of P H Pᵀ up to k (the row subtree); walking them, with a mark per node

@@ -280,7 +280,7 @@ class LDLSolver:
         matrix = cholmod_backend.pattern_matrix(pattern)
         perm = cholmod_backend.amd_ordering(matrix)
         if self._backend == "auto" and not reuse:
-            counts = cholmod_backend.column_counts(pattern.n, pattern.indptr, pattern.indices, perm)
+            counts = cholmod_backend.column_counts(pattern, perm)
             self._decision = (pattern.nnz, cholmod_backend.prefers_cholmod(counts))
             if not self._decision[1]:
                 return None
