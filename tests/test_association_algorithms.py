@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from helpers.association.common import Association, greedy_one_to_one, joint_sq_mahalanobis, prepare
+from helpers.association.common import (Association, greedy_one_to_one, joint_sq_mahalanobis, prepare,
+                                       problem_from_cov)
 from helpers.association.evaluation import run_trials, score, score_many
 from helpers.association.jcbb import jcbb
 from helpers.association.maximum_likelihood import maximum_likelihood, ml_scores
@@ -270,3 +271,70 @@ def test_run_trials_is_deterministic_and_jcbb_wins():
         run_trials(algs, 0, 0)
     with pytest.raises(ValueError, match="seed"):
         run_trials(algs, 1, -1)
+
+
+# ------------------------------------------------------------------------------------------ a prepared problem
+def _random_problem(rng, n=5, m=4, d=2):
+    A = rng.normal(size=(d * n, d * n))
+    P = A @ A.T / (d * n) + 0.05 * np.eye(d * n)
+    mu = rng.normal(size=(n, d))
+    seen = mu[rng.integers(0, n, size=m)] if n else np.zeros((m, d))
+    Y = (seen + 0.1 * rng.normal(size=(m, d))).T
+    return mu, P, Y
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_problem_from_cov_equals_prepare_and_every_algorithm_takes_it(d):
+    rng = np.random.default_rng(7 + d)
+    for _ in range(20):
+        mu, P, Y = _random_problem(rng, n=int(rng.integers(1, 7)), m=int(rng.integers(0, 6)), d=d)
+        ref = prepare(Gaussian.from_cov(mu.ravel(), P), Y, 2.5)
+        got = problem_from_cov(mu, P, Y, 2.5)
+        for name in ("mu", "P", "Y", "blocks"):
+            np.testing.assert_allclose(getattr(got, name), getattr(ref, name), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(got.ic_d2, ref.ic_d2, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(got.logdet, ref.logdet, rtol=0, atol=1e-10)
+        assert got.ic_threshold == ref.ic_threshold and got.n_sigma == 2.5
+        assert prepare(got, None, 2.5) is got and prepare(got, Y.copy(), 2.5) is got
+        if d == 2:
+            for alg in (nearest_neighbour, mahalanobis_nn, maximum_likelihood, jcbb):
+                a, b = alg(got, None, n_sigma=2.5), alg(Gaussian.from_cov(mu.ravel(), P), Y, n_sigma=2.5)
+                assert a.idx.tolist() == b.idx.tolist() and abs(a.d2 - b.d2) <= 1e-9 * max(1.0, b.d2)
+
+
+def test_a_problem_subset_keeps_the_numbers_and_a_new_gate_follows_n_sigma():
+    mu, P, Y = _random_problem(np.random.default_rng(3), n=6, m=5)
+    full = problem_from_cov(mu, P, Y)
+    keep = np.array([4, 0, 2])
+    sub = full.subset(keep)
+    rows = (2 * keep[:, None] + np.arange(2)).ravel()
+    assert np.array_equal(sub.P, full.P[np.ix_(rows, rows)]) and np.array_equal(sub.mu, full.mu[keep])
+    assert np.array_equal(sub.ic_d2, full.ic_d2[keep]) and np.array_equal(sub.logdet, full.logdet[keep])
+    assert sub.Y is full.Y and sub.ic_threshold == full.ic_threshold
+    wider = prepare(full, None, 4.0)
+    assert wider.n_sigma == 4.0 and wider.ic_threshold == chi2inv(confidence_level(4.0), 2)
+    assert np.array_equal(wider.ic_d2, full.ic_d2) and full.n_sigma == 3.0
+
+
+def test_a_prepared_problem_rejects_bad_input_by_name():
+    mu, P, Y = _random_problem(np.random.default_rng(4), n=3, m=2)
+    with pytest.raises(ValueError, match="mu must be a finite"):
+        problem_from_cov(mu[:, :1], P, Y)
+    with pytest.raises(ValueError, match="mu must be a finite"):
+        problem_from_cov(np.where(mu > 0, np.nan, mu), P, Y)
+    with pytest.raises(ValueError, match="P must be a finite"):
+        problem_from_cov(mu, P[:4, :4], Y)
+    with pytest.raises(ValueError, match="P must be symmetric"):
+        problem_from_cov(mu, P + np.triu(np.ones_like(P), 1), Y)
+    with pytest.raises(ValueError, match="P: a landmark's covariance block is not positive definite"):
+        problem_from_cov(mu, -P, Y)
+    with pytest.raises(ValueError, match="Y must be finite"):
+        problem_from_cov(mu, P, np.full((2, 2), np.inf))
+    with pytest.raises(ValueError, match="n_sigma"):
+        problem_from_cov(mu, P, Y, n_sigma=-1.0)
+    problem = problem_from_cov(mu, P, Y)
+    with pytest.raises(ValueError, match="Y must be None or the observations"):
+        jcbb(problem, Y + 1.0)
+    for bad in ([3], [0, 0], [0.5], [[0]]):
+        with pytest.raises(ValueError, match="landmarks must be distinct landmark indices"):
+            problem.subset(np.asarray(bad))

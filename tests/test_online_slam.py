@@ -335,3 +335,23 @@ def test_bad_input_names_the_argument():
         w.fe.process_scan(np.array([[1.0], [0.0]]), -R)
     with pytest.raises(ValueError, match="information"):
         w.fe.process_scan(np.array([[1.0], [0.0]]), R, information=np.eye(3))
+
+
+def test_relative_sigma_from_the_density_equals_the_state_form():
+    from helpers.online_slam.decisions import relative_sigma
+    w = World(LANDMARKS, "jcbb")
+    checked = 0
+    for k in range(12):
+        w.move()
+        w.scan()
+        if (k + 1) % 4 == 0:
+            w.optimise()
+        x = w.fe.pose.estimate
+        wkeys, gidx = w.fe._candidates(x)
+        if not len(wkeys) + len(gidx):
+            continue
+        yhat, C, Rk, sig_v, means = w.fe._density(x, wkeys, gidx, R)
+        np.testing.assert_allclose(w.fe._relative_sigma(x, means, sig_v, C, Rk), relative_sigma(x, means, sig_v),
+                                   rtol=1e-9, atol=1e-12)
+        checked += 1
+    assert checked >= 10

@@ -23,7 +23,7 @@ the lab). Every algorithm reports D²_H of the association it returns, so their 
 from __future__ import annotations
 
 import numbers
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numba
 import numpy as np
@@ -32,8 +32,8 @@ from .compatibility import individual_sq_distances
 from ..gaussian import Gaussian, chi2inv, confidence_level
 from ..validation import float_array, integer
 
-__all__ = ["Association", "AssociationProblem", "prepare", "joint_sq_mahalanobis", "empty_association",
-           "check_hypothesis"]
+__all__ = ["Association", "AssociationProblem", "prepare", "problem_from_cov", "joint_sq_mahalanobis",
+           "empty_association", "check_hypothesis"]
 
 
 @dataclass(frozen=True)
@@ -118,6 +118,20 @@ class AssociationProblem:
     def m(self) -> int:
         return int(self.Y.shape[1])
 
+    def subset(self, landmarks) -> "AssociationProblem":
+        """The problem of the landmarks ``landmarks`` (ascending or not, each at most once) with the same
+        observations: every number is taken from this problem, none recomputed, so a search on the subset sees
+        exactly the distances of the full problem (the front-end re-runs an algorithm without one candidate)."""
+        rows = np.asarray(landmarks)
+        if rows.ndim != 1 or (rows.size and not np.issubdtype(rows.dtype, np.integer)) \
+                or np.any(rows < 0) or np.any(rows >= self.n) or np.unique(rows).size != rows.size:
+            raise ValueError(f"landmarks must be distinct landmark indices in [0, {self.n}), got {rows.tolist()}")
+        d = self.d
+        r = (d * rows.astype(np.int64)[:, None] + np.arange(d)).ravel()
+        return AssociationProblem(mu=self.mu[rows], P=self.P[np.ix_(r, r)], Y=self.Y, blocks=self.blocks[rows],
+                                  ic_d2=self.ic_d2[rows], logdet=self.logdet[rows], n_sigma=self.n_sigma,
+                                  ic_threshold=self.ic_threshold)
+
     def jc_threshold(self, n_pairings):
         """χ²_{d·a}(c) for a pairings (array-friendly)."""
         if isinstance(n_pairings, (int, np.integer)):
@@ -130,25 +144,48 @@ def _check_int(value, name, minimum=0, allow_none=False):
     return integer(value, name, minimum=minimum, allow_none=allow_none)
 
 
+def _observations(Y):
+    """``Y`` checked: a finite (d, m) float array with d ≥ 1 (ValueError naming Y otherwise)."""
+    Y = float_array(Y, "Y")
+    if Y.ndim != 2:
+        raise ValueError(f"Y must be a 2-D array of shape (d, m) (one observation per column), got shape {Y.shape}")
+    if Y.shape[0] == 0:
+        raise ValueError("Y must have at least one row (the observation dimension d), got shape (0, m)")
+    if not np.all(np.isfinite(Y)):
+        bad = np.flatnonzero(~np.all(np.isfinite(Y), axis=0))
+        raise ValueError(f"Y must be finite (no NaN/inf); bad columns: {bad.tolist()}")
+    return Y
+
+
+def _given_problem(problem, Y, n_sigma):
+    """A problem handed to an algorithm instead of a density: Y must be None or its observations; the gate
+    follows ``n_sigma``."""
+    if Y is not None and not (Y is problem.Y or np.array_equal(np.asarray(Y), problem.Y)):
+        raise ValueError("Y must be None or the observations of the AssociationProblem given as density")
+    c = confidence_level(n_sigma)  # validates n_sigma
+    if float(n_sigma) == problem.n_sigma:
+        return problem
+    return replace(problem, n_sigma=float(n_sigma), ic_threshold=float(chi2inv(c, problem.d)))
+
+
 def prepare(density, Y, n_sigma: float = 3.0) -> AssociationProblem:
     """Validate ``(density, Y)`` for the common interface and precompute the individual distances.
+
+    ``density`` may also be an :class:`AssociationProblem` (from :func:`problem_from_cov` or an earlier
+    ``prepare``): it is returned as it is (its gate set by ``n_sigma``), and Y must then be None or its
+    observations. This is how a caller that runs several algorithms on one problem prepares it once.
 
     Raises ValueError naming the argument when: ``density`` is not a Gaussian; ``Y`` is not a finite 2-D
     array; ``density.size`` is not a multiple of d = Y.shape[0]; ``n_sigma`` is not positive; a landmark's
     predicted covariance block is not positive definite. An empty observation set (m = 0, Y of shape
     (d, 0)) is valid: every algorithm then returns all −1.
     """
+    if isinstance(density, AssociationProblem):
+        return _given_problem(density, Y, n_sigma)
     if not isinstance(density, Gaussian):
         raise ValueError(f"density must be a helpers.gaussian.Gaussian, got {type(density).__name__}")
-    Y = float_array(Y, "Y")
-    if Y.ndim != 2:
-        raise ValueError(f"Y must be a 2-D array of shape (d, m) (one observation per column), got shape {Y.shape}")
+    Y = _observations(Y)
     d, m = Y.shape
-    if d == 0:
-        raise ValueError("Y must have at least one row (the observation dimension d), got shape (0, m)")
-    if not np.all(np.isfinite(Y)):
-        bad = np.flatnonzero(~np.all(np.isfinite(Y), axis=0))
-        raise ValueError(f"Y must be finite (no NaN/inf); bad columns: {bad.tolist()}")
     if density.size % d:
         raise ValueError(f"density has size {density.size}, which is not a multiple of the observation "
                          f"dimension d = Y.shape[0] = {d}")
@@ -167,14 +204,58 @@ def prepare(density, Y, n_sigma: float = 3.0) -> AssociationProblem:
     if m and d == 2:
         # the lab's vectorised individual distances (compatibility module): d2 (m, n) from the 2×2 marginals
         ic_d2 = np.ascontiguousarray(individual_sq_distances(Y, density).T)
-    elif m:
-        nu = Y.T[None, :, :] - mu[:, None, :]                         # (n, m, d) innovations ν_ki
-        Linv = np.linalg.inv(Lb)                                       # (n, d, d), L_k⁻¹
-        w = np.einsum("kab,kmb->kma", Linv, nu)                        # w = L_k⁻¹ ν_ki
-        ic_d2 = np.einsum("kma,kma->km", w, w)
     else:
-        ic_d2 = np.zeros((n, 0))
+        ic_d2 = _individual_d2(Lb, mu, Y)
     return AssociationProblem(mu=mu, P=P, Y=Y, blocks=blocks, ic_d2=ic_d2, logdet=logdet,
+                              n_sigma=float(n_sigma), ic_threshold=float(chi2inv(c, d)))
+
+
+def _individual_d2(Lb, mu, Y):
+    """(n, m) d²_ki = ‖L_k⁻¹ ν_ki‖², ν_ki = y_i − μ_k, from the Cholesky factors L_k (n, d, d) of the blocks."""
+    n, d = mu.shape
+    if Y.shape[1] == 0:
+        return np.zeros((n, 0))
+    nu = Y.T[None, :, :] - mu[:, None, :]                              # (n, m, d) innovations ν_ki
+    if d == 2:                                                         # L_k = [[a, 0], [b, c]]: forward substitution
+        w1 = nu[..., 0] / Lb[:, 0, 0, None]
+        w2 = (nu[..., 1] - Lb[:, 1, 0, None] * w1) / Lb[:, 1, 1, None]
+        return w1 * w1 + w2 * w2
+    w = np.einsum("kab,kmb->kma", np.linalg.inv(Lb), nu)               # w = L_k⁻¹ ν_ki
+    return np.einsum("kma,kma->km", w, w)
+
+
+def problem_from_cov(mu, P, Y, n_sigma: float = 3.0) -> AssociationProblem:
+    """The problem of predicted observations ``mu`` (n, d) with joint covariance ``P`` (d·n, d·n, measurement
+    noise included, symmetric) and observations ``Y`` (d, m), for a caller that holds the covariance rather
+    than a Gaussian (the online front-end builds one per scan). The same quantities as :func:`prepare`, from
+    the Cholesky factors of the diagonal blocks (individual distances equal to the square-root path's to
+    round-off). Pass the result as ``density`` to any algorithm (with Y None).
+
+    ValueError naming the argument: mu not a finite 2-D array, Y not finite (d, m) with mu's d, P not finite
+    of shape (d·n, d·n) or not symmetric, a diagonal block of P not positive definite, n_sigma not positive.
+    """
+    Y = _observations(Y)
+    d = Y.shape[0]
+    mu = float_array(mu, "mu")
+    if mu.ndim != 2 or mu.shape[1] != d or not np.all(np.isfinite(mu)):
+        raise ValueError(f"mu must be a finite (n, {d}) array (one predicted observation per row, d = Y.shape[0]),"
+                         f" got shape {mu.shape}")
+    n = mu.shape[0]
+    P = float_array(P, "P")
+    if P.shape != (d * n, d * n) or not np.all(np.isfinite(P)):
+        raise ValueError(f"P must be a finite ({d * n}, {d * n}) covariance, got shape {P.shape}")
+    if not np.all(np.abs(P - P.T) <= 1e-12 * max(1.0, float(np.max(np.abs(P), initial=0.0)))
+                  + 1e-10 * np.abs(P.T)):
+        raise ValueError("P must be symmetric")
+    c = confidence_level(n_sigma)  # validates n_sigma
+    P = 0.5 * (P + P.T)
+    blocks = P.reshape(n, d, n, d)[np.arange(n), :, np.arange(n), :]
+    try:
+        Lb = np.linalg.cholesky(blocks)
+    except np.linalg.LinAlgError:
+        raise ValueError("P: a landmark's covariance block is not positive definite") from None
+    logdet = 2.0 * np.sum(np.log(np.diagonal(Lb, axis1=1, axis2=2)), axis=1) + d * np.log(2.0 * np.pi)
+    return AssociationProblem(mu=mu, P=P, Y=Y, blocks=blocks, ic_d2=_individual_d2(Lb, mu, Y), logdet=logdet,
                               n_sigma=float(n_sigma), ic_threshold=float(chi2inv(c, d)))
 
 

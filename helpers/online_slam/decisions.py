@@ -24,11 +24,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..gaussian import Gaussian
 from ..graph import EdgeSE2PointXY
 from .algorithms import associate
 
-__all__ = ["individually_compatible", "individual_d2", "relative_sigma", "ambiguous_pairings", "sub_problem"]
+__all__ = ["individually_compatible", "individual_d2", "relative_sigma", "largest_sd", "ambiguous_pairings",
+           "sub_problem"]
 
 
 def individually_compatible(yhat, C, Y, gate) -> np.ndarray:
@@ -60,7 +60,14 @@ def relative_sigma(x, means, sig_v) -> np.ndarray:
     sxm = sig_v[:3, 3:].reshape(3, k, 2).transpose(1, 0, 2)                  # (k, 3, 2) Σ_x,m_i
     smm = sig_v[3:, 3:].reshape(k, 2, k, 2)[ar, :, ar, :]                      # (k, 2, 2) Σ_m_i
     cross = jx @ sxm @ jm.transpose(0, 2, 1)
-    P = jx @ sxx @ jx.transpose(0, 2, 1) + cross + cross.transpose(0, 2, 1) + jm @ smm @ jm.transpose(0, 2, 1)
+    return largest_sd(jx @ sxx @ jx.transpose(0, 2, 1) + cross + cross.transpose(0, 2, 1)
+                      + jm @ smm @ jm.transpose(0, 2, 1))
+
+
+def largest_sd(P) -> np.ndarray:
+    """(k,) square roots of the largest eigenvalues of the symmetric 2 × 2 covariances P (k, 2, 2), closed
+    form. In the Cartesian association space the front-end reads ``relative_sigma`` this way from the diagonal
+    blocks of the scan's density: C_kk − R_k = J_k Σ_v J_kᵀ, the same covariance of q_k."""
     half = 0.5 * (P[:, 0, 0] + P[:, 1, 1])
     det = P[:, 0, 0] * P[:, 1, 1] - P[:, 0, 1] * P[:, 1, 0]
     return np.sqrt(np.maximum(half + np.sqrt(np.maximum(half * half - det, 0.0)), 0.0))
@@ -74,13 +81,15 @@ def sub_problem(yhat, C, Y, cand, obs):
     return yhat[cand], C[np.ix_(rows, rows)], Y[:, np.asarray(obs, dtype=np.int64)]
 
 
-def ambiguous_pairings(algorithm, yhat, C, Y, R, idx, n_sigma, options, ic, tentative) -> list:
-    """Candidates whose pairing in ``idx`` has an equally good alternative (module docstring). ``tentative`` (k,)
-    marks tentative landmarks: a confirmed landmark takes precedence over a tentative one — a pairing with a
-    confirmed landmark whose only alternative is a tentative landmark stands (that tentative landmark is most
-    likely its duplicate, started by an observation just outside the gate), while a pairing with a tentative
-    landmark that a confirmed one explains as well is ambiguous."""
+def ambiguous_pairings(algorithm, problem, R, idx, options, tentative) -> list:
+    """Candidates whose pairing in ``idx`` has an equally good alternative (module docstring), on the scan's
+    ``AssociationProblem`` (``problem_from_cov``; the re-runs use its subsets, so they see the same distances).
+    ``tentative`` (k,) marks tentative landmarks: a confirmed landmark takes precedence over a tentative one — a
+    pairing with a confirmed landmark whose only alternative is a tentative landmark stands (that tentative
+    landmark is most likely its duplicate, started by an observation just outside the gate), while a pairing
+    with a tentative landmark that a confirmed one explains as well is ambiguous."""
     n_pairings = int(np.count_nonzero(idx >= 0))
+    ic = problem.ic_d2 <= problem.ic_threshold
     out = []
     for k in np.flatnonzero(idx >= 0):
         i = idx[k]
@@ -89,8 +98,7 @@ def ambiguous_pairings(algorithm, yhat, C, Y, R, idx, n_sigma, options, ic, tent
         keep = np.flatnonzero(np.arange(len(idx)) != k)
         if keep.size == 0:                  # no other candidate: no alternative
             continue
-        yk, Ck, _ = sub_problem(yhat, C, Y, keep, np.arange(Y.shape[1]))
-        alt = associate(algorithm, Gaussian.from_cov(yk.ravel(), Ck), Y, n_sigma, options, R)
+        alt = associate(algorithm, problem.subset(keep), None, problem.n_sigma, options, R)
         other = keep[np.flatnonzero(alt.idx == i)]
         if alt.n_pairings >= n_pairings and other.size and not (tentative[other[0]] and not tentative[k]):
             out.append(int(k))

@@ -46,13 +46,14 @@ import time
 
 import numpy as np
 
-from ..gaussian import Gaussian, chi2inv, confidence_level
+from ..association.common import problem_from_cov
+from ..gaussian import chi2inv, confidence_level
 from ..graph import VertexPointXY
 from ..validation import float_array, integer, positive_number
 from .algorithms import associate, check_algorithm, check_options
 from .covariance import MarginalColumns
 from .closure import LoopClosure
-from .decisions import ambiguous_pairings, individual_d2, relative_sigma, sub_problem
+from .decisions import ambiguous_pairings, largest_sd, relative_sigma, sub_problem
 from .models import motion_jacobians
 from .tracks import CONFIRMED, DROPPED, TENTATIVE, ConfirmationRules, Track
 from .verification import MergeVerification
@@ -250,19 +251,29 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
         C = J @ sig_v @ J.T + noise.reshape(d * k, d * k)
         return yhat, 0.5 * (C + C.T), Rk, sig_v, means
 
+    def _relative_sigma(self, x, means, sig_v, C, Rk):
+        """``decisions.relative_sigma`` of the candidates. In the Cartesian association space ŷ_k is q_k itself,
+        so the diagonal blocks of the density minus the noise, C_kk − R_k = J_k Σ_v J_kᵀ, are q_k's covariances."""
+        if self.model.association_space != "cartesian":
+            return relative_sigma(x, means, sig_v)
+        k, d = Rk.shape[:2]
+        ar = np.arange(k)
+        return largest_sd(C.reshape(k, d, k, d)[ar, :, ar, :] - Rk)
+
     def _associate(self, yhat, C, Y, R, cand, cand_tracks):
         """The algorithm on candidates ``cand`` (their tracks ``cand_tracks``) and all of Y; ambiguous pairings
         removed. Returns (idx over ``cand``, observations rejected as ambiguous, Association, d² (len(cand), m)
         of every candidate–observation pair)."""
-        yc, Cc, _ = sub_problem(yhat, C, Y, cand, np.arange(Y.shape[1]))
-        assoc = associate(self.algorithm, Gaussian.from_cov(yc.ravel(), Cc), Y, self.n_sigma, self.options, R)
+        if len(cand) < len(yhat):
+            yhat, C, _ = sub_problem(yhat, C, Y, cand, np.arange(Y.shape[1]))
+        problem = problem_from_cov(yhat, C, Y, self.n_sigma)        # one problem for every run on this scan
+        assoc = associate(self.algorithm, problem, None, self.n_sigma, self.options, R)
         idx = np.asarray(assoc.idx, dtype=np.int64).copy()
         rejected = []
-        d2 = individual_d2(yc, Cc, Y)
+        d2 = problem.ic_d2
         if self.reject_ambiguous:
-            ic = d2 <= self._ic_gate
             tentative = np.array([t.status == TENTATIVE for t in cand_tracks])
-            for k in ambiguous_pairings(self.algorithm, yc, Cc, Y, R, idx, self.n_sigma, self.options, ic, tentative):
+            for k in ambiguous_pairings(self.algorithm, problem, R, idx, self.options, tentative):
                 rejected.append(int(idx[k]))
                 idx[k] = -1
         self.stats["ambiguous_rejected"] += len(rejected)
@@ -296,7 +307,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
             yu, Yu = self.model.association_observations(Z, yhat)
             Rgate = Rk[int(np.argmax(np.trace(Rk, axis1=1, axis2=2)))]
             untrusted = (np.array([t.status == CONFIRMED for t in cands])
-                         & (relative_sigma(x, means, sig_v) > self.closure_sigma))
+                         & (self._relative_sigma(x, means, sig_v, C, Rk) > self.closure_sigma))
             trusted = self._tracking_candidates(cands, untrusted)
             if trusted.size:
                 idx, rejected, result.association, d2 = self._associate(yu, C, Yu, Rgate, trusted,
