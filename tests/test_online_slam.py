@@ -355,3 +355,13 @@ def test_relative_sigma_from_the_density_equals_the_state_form():
                                    rtol=1e-9, atol=1e-12)
         checked += 1
     assert checked >= 10
+
+
+def test_largest_sd_is_the_root_of_the_largest_eigenvalue_and_rejects_bad_shapes():
+    from helpers.online_slam.decisions import largest_sd
+    A = np.random.default_rng(2).normal(size=(6, 2, 2))
+    P = A @ A.transpose(0, 2, 1)
+    np.testing.assert_allclose(largest_sd(P), np.sqrt(np.linalg.eigvalsh(P)[:, -1]), rtol=1e-12)
+    for bad in (np.eye(2), np.zeros((3, 3, 3)), np.zeros((2, 2, 1))):
+        with pytest.raises(ValueError, match="P must be a"):
+            largest_sd(bad)
