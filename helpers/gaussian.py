@@ -29,7 +29,7 @@ import numbers
 import numpy as np
 from scipy import linalg, special
 
-from .validation import finite_vector, float_array, index_list
+from .validation import check_symmetric, finite_vector, float_array, index_list
 
 __all__ = ["Gaussian", "chi2inv", "chi2_interval", "normcdf", "confidence_level", "square_r_factor"]
 
@@ -182,9 +182,7 @@ class Gaussian:
             raise ValueError(f"P must have shape ({mu.size}, {mu.size}), got {P.shape}")
         if not np.all(np.isfinite(P)):
             raise ValueError("P must be finite (no NaN/inf)")
-        # |P − Pᵀ| ≤ atol + rtol·|Pᵀ| entrywise (np.allclose's test, without its overhead: this runs per scan)
-        if not np.all(np.abs(P - P.T) <= 1e-12 * max(1.0, np.max(np.abs(P))) + 1e-10 * np.abs(P.T)):
-            raise ValueError("P must be symmetric")
+        check_symmetric(P, "P")
         try:
             L = np.linalg.cholesky(0.5 * (P + P.T))
         except np.linalg.LinAlgError:

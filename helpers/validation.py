@@ -132,6 +132,14 @@ def float_array(values, name: str) -> np.ndarray:
     return raw.astype(float, copy=False)
 
 
+def check_symmetric(P, name: str) -> None:
+    """ValueError naming ``name`` unless the square float array ``P`` is symmetric to round-off: entrywise
+    |P − Pᵀ| ≤ 1e−12·max(1, max|P|) + 1e−10·|Pᵀ| (np.allclose's test, without its overhead: covariances are
+    checked per scan)."""
+    if not np.all(np.abs(P - P.T) <= 1e-12 * max(1.0, float(np.max(np.abs(P), initial=0.0))) + 1e-10 * np.abs(P.T)):
+        raise ValueError(f"{name} must be symmetric")
+
+
 def rng_seed(seed, name: str = "seed"):
     """``seed`` unchanged when it is a reproducible seed for ``numpy.random.default_rng``: a non-negative
     integer, a non-empty sequence of them, or a ``numpy.random.SeedSequence``. Anything else (negative,

@@ -4,7 +4,8 @@ import pytest
 
 from helpers.gaussian import Gaussian, square_r_factor
 from helpers.timing import best_of, timed
-from helpers.validation import feature_columns, finite_number, finite_vector, int_array, integer, positive_number
+from helpers.validation import (check_symmetric, feature_columns, finite_number, finite_vector, int_array, integer,
+                                positive_number)
 
 
 def test_integer_bounds_and_none():
@@ -44,6 +45,14 @@ def test_feature_columns():
         feature_columns(np.zeros((3, 4)), "Z")
     with pytest.raises(ValueError, match="Y must be finite"):
         feature_columns([[0.0], [np.inf]])
+
+
+def test_check_symmetric_accepts_round_off_and_names_the_argument():
+    P = np.array([[2.0, 1.0], [1.0 + 1e-14, 3.0]])
+    check_symmetric(P, "P")
+    check_symmetric(np.zeros((0, 0)), "P")
+    with pytest.raises(ValueError, match="Q must be symmetric"):
+        check_symmetric(np.array([[2.0, 1.0], [1.1, 3.0]]), "Q")
 
 
 def test_timed_and_best_of():

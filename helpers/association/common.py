@@ -30,7 +30,7 @@ import numpy as np
 
 from .compatibility import individual_sq_distances
 from ..gaussian import Gaussian, chi2inv, confidence_level
-from ..validation import float_array, integer
+from ..validation import check_symmetric, float_array, integer
 
 __all__ = ["Association", "AssociationProblem", "prepare", "problem_from_cov", "joint_sq_mahalanobis",
            "empty_association", "check_hypothesis"]
@@ -244,11 +244,9 @@ def problem_from_cov(mu, P, Y, n_sigma: float = 3.0) -> AssociationProblem:
     P = float_array(P, "P")
     if P.shape != (d * n, d * n) or not np.all(np.isfinite(P)):
         raise ValueError(f"P must be a finite ({d * n}, {d * n}) covariance, got shape {P.shape}")
-    asym = P - P.T
-    if n and float(np.max(np.abs(asym))) > 1e-10 * max(1.0, float(np.max(np.abs(P)))):
-        raise ValueError("P must be symmetric")
+    check_symmetric(P, "P")
     c = confidence_level(n_sigma)  # validates n_sigma
-    P = P - 0.5 * asym                                                 # ½(P + Pᵀ)
+    P = 0.5 * (P + P.T)
     blocks = P.reshape(n, d, n, d)[np.arange(n), :, np.arange(n), :]
     try:
         Lb = np.linalg.cholesky(blocks)
