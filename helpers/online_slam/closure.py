@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .decisions import individually_compatible, sub_problem
 from .tracks import CONFIRMED, TENTATIVE
 
 __all__ = ["LoopClosure"]
@@ -75,11 +74,10 @@ class LoopClosure:
             return
         yu, C, Yu, Rgate, _, cands = closure
         cols = np.array([j for _, j in confirmable])
-        idx, _, _, _ = self._associate(yu, C, Yu[:, cols], Rgate, untrusted, [cands[i] for i in untrusted])
+        idx, _, _, d2 = self._associate(yu, C, Yu[:, cols], Rgate, untrusted, [cands[i] for i in untrusted])
         if np.count_nonzero(idx >= 0) < self.closure_support:
             idx[:] = -1
-        yb, Cb, Yb = sub_problem(yu, C, Yu, untrusted, cols)
-        compatible = individually_compatible(yb, Cb, Yb, self._ic_gate).any(axis=0)
+        compatible = (d2 <= self._ic_gate).any(axis=0)     # the problem's individual distances, not recomputed
         for c, (t, _) in enumerate(confirmable):
             hit = np.flatnonzero(idx == c)
             if hit.size:

@@ -1,9 +1,9 @@
 """The tests the front-end applies to an association before it commits to it.
 
 All work on one scan's problem in the association space: the candidates' predicted observations ŷ (k, d), their
-joint covariance C (d·k × d·k, measurement noise included), the observations Y (d, m).
-
-``individually_compatible``  d²_ki = ν_kiᵀ C_kk⁻¹ ν_ki ≤ χ²_d(c) for every candidate k and observation i.
+joint covariance C (d·k × d·k, measurement noise included), the observations Y (d, m). The individual distances
+d²_ki = ν_kiᵀ C_kk⁻¹ ν_ki come from the scan's ``AssociationProblem`` (``association.common.problem_from_cov``),
+computed once per scan and read by every test here and in ``closure``.
 
 ``relative_sigma``           the largest standard deviation (m) of each landmark's position in the vehicle frame,
                              q = R(ψ)ᵀ(m − p), from the joint state covariance — the sensor noise left out.
@@ -27,24 +27,7 @@ import numpy as np
 from ..graph import EdgeSE2PointXY
 from .algorithms import associate
 
-__all__ = ["individually_compatible", "individual_d2", "relative_sigma", "largest_sd", "ambiguous_pairings",
-           "sub_problem"]
-
-
-def individually_compatible(yhat, C, Y, gate) -> np.ndarray:
-    """(k, m) boolean: d²_ki ≤ ``gate``."""
-    return individual_d2(yhat, C, Y) <= gate
-
-
-def individual_d2(yhat, C, Y) -> np.ndarray:
-    """(k, m): d²_ki = ν_kiᵀ C_kk⁻¹ ν_ki with ν_ki = y_i − ŷ_k."""
-    k, d = yhat.shape
-    if k == 0 or Y.shape[1] == 0:
-        return np.zeros((k, Y.shape[1]))
-    blocks = C.reshape(k, d, k, d)[np.arange(k), :, np.arange(k), :]
-    nu = Y.T[None, :, :] - yhat[:, None, :]
-    w = np.linalg.solve(blocks[:, None, :, :], nu[..., None])[..., 0]
-    return np.einsum("kmd,kmd->km", nu, w)
+__all__ = ["relative_sigma", "largest_sd", "ambiguous_pairings", "sub_problem"]
 
 
 def relative_sigma(x, means, sig_v) -> np.ndarray:
