@@ -30,7 +30,7 @@ import numpy as np
 
 from .compatibility import individual_sq_distances
 from ..gaussian import Gaussian, chi2inv, confidence_level
-from ..validation import check_symmetric, float_array, integer
+from ..validation import float_array, integer
 
 __all__ = ["Association", "AssociationProblem", "prepare", "problem_from_cov", "joint_sq_mahalanobis",
            "empty_association", "check_hypothesis"]
@@ -228,33 +228,107 @@ def problem_from_cov(mu, P, Y, n_sigma: float = 3.0) -> AssociationProblem:
     """The problem of predicted observations ``mu`` (n, d) with joint covariance ``P`` (d·n, d·n, measurement
     noise included, symmetric) and observations ``Y`` (d, m), for a caller that holds the covariance rather
     than a Gaussian (the online front-end builds one per scan). The same quantities as :func:`prepare`, from
-    the Cholesky factors of the diagonal blocks (individual distances equal to the square-root path's to
-    round-off). Pass the result as ``density`` to any algorithm (with Y None).
+    the Cholesky factors L_k of the diagonal blocks: d²_ki = ‖L_k⁻¹ ν_ki‖² by forward substitution, log det
+    from the diagonal of L_k (equal to the square-root path's to round-off). The numbers come from one compiled
+    pass (``_problem_numbers``: checks, symmetrisation, the blocks' Cholesky factors and the forward
+    substitutions of ``_individual_d2``). Pass the result as ``density`` to any algorithm (with Y None).
 
     ValueError naming the argument: mu not a finite 2-D array, Y not finite (d, m) with mu's d, P not finite
     of shape (d·n, d·n) or not symmetric, a diagonal block of P not positive definite, n_sigma not positive.
     """
-    Y = _observations(Y)
+    Y = float_array(Y, "Y")
+    if Y.ndim != 2 or Y.shape[0] == 0:
+        Y = _observations(Y)                         # raises the message for the shape
     d = Y.shape[0]
     mu = float_array(mu, "mu")
-    if mu.ndim != 2 or mu.shape[1] != d or not np.all(np.isfinite(mu)):
+    if mu.ndim != 2 or mu.shape[1] != d:
         raise ValueError(f"mu must be a finite (n, {d}) array (one predicted observation per row, d = Y.shape[0]),"
                          f" got shape {mu.shape}")
     n = mu.shape[0]
     P = float_array(P, "P")
-    if P.shape != (d * n, d * n) or not np.all(np.isfinite(P)):
+    if P.shape != (d * n, d * n):
         raise ValueError(f"P must be a finite ({d * n}, {d * n}) covariance, got shape {P.shape}")
-    check_symmetric(P, "P")
     c = confidence_level(n_sigma)  # validates n_sigma
-    P = 0.5 * (P + P.T)
-    blocks = P.reshape(n, d, n, d)[np.arange(n), :, np.arange(n), :]
-    try:
-        Lb = np.linalg.cholesky(blocks)
-    except np.linalg.LinAlgError:
-        raise ValueError("P: a landmark's covariance block is not positive definite") from None
-    logdet = 2.0 * np.sum(np.log(np.diagonal(Lb, axis1=1, axis2=2)), axis=1) + d * np.log(2.0 * np.pi)
-    return AssociationProblem(mu=mu, P=P, Y=Y, blocks=blocks, ic_d2=_individual_d2(Lb, mu, Y), logdet=logdet,
+    mu, P, Y = np.ascontiguousarray(mu), np.ascontiguousarray(P), np.ascontiguousarray(Y)
+    status, Ps, blocks, ic_d2, logdet = _problem_numbers(mu, P, Y)
+    if status:
+        if status == _BAD_Y:
+            _observations(Y)                         # raises the message naming the bad columns
+        raise ValueError({_BAD_MU: f"mu must be a finite (n, {d}) array (one predicted observation per row, d = "
+                                   f"Y.shape[0]), got non-finite entries",
+                          _BAD_P: f"P must be a finite ({d * n}, {d * n}) covariance, got non-finite entries",
+                          _ASYMMETRIC: "P must be symmetric",
+                          _NOT_PD: "P: a landmark's covariance block is not positive definite"}[status])
+    return AssociationProblem(mu=mu, P=Ps, Y=Y, blocks=blocks, ic_d2=ic_d2, logdet=logdet,
                               n_sigma=float(n_sigma), ic_threshold=float(chi2inv(c, d)))
+
+
+_BAD_Y, _BAD_MU, _BAD_P, _ASYMMETRIC, _NOT_PD = 1, 2, 3, 4, 5
+
+
+@numba.njit(cache=True)
+def _problem_numbers(mu, P, Y):
+    """(status, ½(P + Pᵀ), blocks (n, d, d), d² (n, m), log det(2π P_kk) (n,)) for ``problem_from_cov``; status
+    0, or the first failed check: Y, mu, P not finite, P not symmetric (``validation.check_symmetric``'s test),
+    a block not positive definite. Cholesky L_k of each block, then for every observation the forward
+    substitution w = L_k⁻¹ ν_ki and d² = ‖w‖² (the operations of ``_individual_d2``)."""
+    n, d = mu.shape
+    m = Y.shape[1]
+    N = P.shape[0]
+    Ps = np.empty((N, N))
+    blocks = np.zeros((n, d, d))
+    ic_d2 = np.zeros((n, m))
+    logdet = np.zeros(n)
+    if not np.all(np.isfinite(Y)):
+        return _BAD_Y, Ps, blocks, ic_d2, logdet
+    if not np.all(np.isfinite(mu)):
+        return _BAD_MU, Ps, blocks, ic_d2, logdet
+    big = 1.0
+    for i in range(N):
+        for j in range(N):
+            a = P[i, j]
+            if not np.isfinite(a):
+                return _BAD_P, Ps, blocks, ic_d2, logdet
+            big = max(big, abs(a))
+    for i in range(N):
+        for j in range(N):
+            if not abs(P[i, j] - P[j, i]) <= 1e-12 * big + 1e-10 * abs(P[j, i]):
+                return _ASYMMETRIC, Ps, blocks, ic_d2, logdet
+            Ps[i, j] = 0.5 * (P[i, j] + P[j, i])
+    L = np.zeros((d, d))
+    w = np.zeros(d)
+    log2pi = np.log(2.0 * np.pi)
+    for k in range(n):
+        r = d * k
+        for a in range(d):
+            for b in range(d):
+                blocks[k, a, b] = Ps[r + a, r + b]
+        for a in range(d):                                  # Cholesky, column by column
+            s = blocks[k, a, a]
+            for q in range(a):
+                s -= L[a, q] * L[a, q]
+            if not s > 0.0:
+                return _NOT_PD, Ps, blocks, ic_d2, logdet
+            L[a, a] = np.sqrt(s)
+            for b in range(a + 1, d):
+                s = blocks[k, b, a]
+                for q in range(a):
+                    s -= L[b, q] * L[a, q]
+                L[b, a] = s / L[a, a]
+        acc = 0.0
+        for a in range(d):
+            acc += np.log(L[a, a])
+        logdet[k] = 2.0 * acc + d * log2pi
+        for i in range(m):
+            s2 = 0.0
+            for a in range(d):
+                s = Y[a, i] - mu[k, a]
+                for q in range(a):
+                    s -= L[a, q] * w[q]
+                w[a] = s / L[a, a]
+                s2 += w[a] * w[a]
+            ic_d2[k, i] = s2
+    return 0, Ps, blocks, ic_d2, logdet
 
 
 def check_hypothesis(idx, n: int, m: int, name: str = "idx") -> np.ndarray:

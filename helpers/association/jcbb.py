@@ -34,6 +34,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ..gaussian import chi2inv, confidence_level
@@ -85,6 +86,35 @@ def level_order(compatible) -> np.ndarray:
     counts = np.count_nonzero(compatible, axis=1)
     lm = np.flatnonzero(counts > 0)
     return lm[np.lexsort((lm, counts[lm]))]
+
+
+@numba.njit(cache=True)
+def _tree_arrays(ic_d2, threshold):
+    """The compiled search's tree from the individual distances: ``level_order`` of the IC matrix
+    d² ≤ ``threshold`` (levels (T,)), each level's IC observations ascending (``cand_obs[cand_ptr[t]:cand_ptr[t+1]]``)
+    and, per observation, the last level that has it as a candidate (−1: none)."""
+    n, m = ic_d2.shape
+    counts = np.zeros(n, dtype=np.int64)
+    for k in range(n):
+        for i in range(m):
+            if ic_d2[k, i] <= threshold:
+                counts[k] += 1
+    lm = np.flatnonzero(counts > 0)
+    levels = lm[np.argsort(counts[lm] * (n + 1) + lm)]          # fewest candidates first, ties → lower index
+    T = levels.size
+    cand_ptr = np.zeros(T + 1, dtype=np.int64)
+    for t in range(T):
+        cand_ptr[t + 1] = cand_ptr[t] + counts[levels[t]]
+    cand_obs = np.empty(cand_ptr[T], dtype=np.int64)
+    last_level = np.full(m, -1, dtype=np.int64)
+    q = 0
+    for t in range(T):
+        for i in range(m):
+            if ic_d2[levels[t], i] <= threshold:
+                cand_obs[q] = i
+                last_level[i] = t
+                q += 1
+    return levels.astype(np.int64), cand_ptr, cand_obs, last_level
 
 
 def _tree(density, Y, n_sigma):
@@ -226,20 +256,18 @@ def jcbb(density, Y, n_sigma: float = 3.0, max_nodes: int | None = None, trace: 
     if not isinstance(trace, bool):
         raise ValueError(f"trace must be True or False, got {trace!r}")
     trace_capacity = _check_int(trace_capacity, "trace_capacity", minimum=1)
-    problem, compatible, levels, stats = _tree(density, Y, n_sigma)
+    problem = prepare(density, Y, n_sigma)
+    levels, cand_ptr, cols, last_level = _tree_arrays(problem.ic_d2, problem.ic_threshold)
+    stats = {"nodes": 0, "jc_evaluations": 0, "levels": int(levels.size), "level_order": levels,
+             "ic_pairs": int(cand_ptr[-1])}
     if problem.m == 0 or levels.size == 0:
         stats["nodes"] = 1
         return empty_association(problem, "jcbb", stats)
-    sub = compatible[levels]                                     # (T, m)
-    cols = np.nonzero(sub)[1]                                    # row-major: per level, obs ascending
-    cand_ptr = np.concatenate([[0], np.cumsum(np.count_nonzero(sub, axis=1))]).astype(np.int64)
-    last_level = np.where(sub.any(axis=0), sub.shape[0] - 1 - np.argmax(sub[::-1], axis=0), -1)
     K = min(levels.size, problem.m)
     thresh = np.zeros(K + 2)                                     # thresh[a] = χ²_{d·a}(c)
     thresh[1:] = _joint_gates(confidence_level(n_sigma), problem.d, K)
     out = jcbb_search(np.ascontiguousarray(problem.mu.ravel()), np.ascontiguousarray(problem.P),
-                      np.ascontiguousarray(problem.Y), problem.d, levels.astype(np.int64), cand_ptr,
-                      cols.astype(np.int64), last_level.astype(np.int64), thresh,
+                      np.ascontiguousarray(problem.Y), problem.d, levels, cand_ptr, cols, last_level, thresh,
                       -1 if max_nodes is None else max_nodes, trace_capacity if trace else 0)
     best_idx, best_k, best_d2, nodes, jc_evals, exhausted = out[:6]
     stats["nodes"] = int(nodes)
