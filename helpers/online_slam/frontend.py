@@ -213,26 +213,24 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
     def _widening(self):
         """(range, bearing) widening of the footprint for candidates: the model's margins plus n_σ times the
         position and heading standard deviations of the current pose."""
-        P = self.window.covariance([], self.columns.joint(self.anchors))[:3, :3]
-        pos = float(np.sqrt(max(np.linalg.eigvalsh(P[:2, :2])[-1], 0.0)))
+        P = self.window.pose_covariance(self.columns.joint(self.anchors))
+        pos = float(largest_sd(P[None, :2, :2])[0])
         return (self.model.range_margin + self.n_sigma * pos,
                 self.model.bearing_margin + self.n_sigma * float(np.sqrt(max(P[2, 2], 0.0))))
 
     def _candidates(self, x):
-        """(window keys, factorised indices) of the candidate landmarks seen from pose x."""
+        """(window keys, factorised indices) of the candidate landmarks seen from pose x: one prediction of the
+        window's means and the factorised landmarks together."""
         wkeys = self.window.keys
-        sel_g = np.zeros(0, dtype=np.int64)
-        if not wkeys and not len(self._factorised):
-            return [], sel_g
-        widen = self._widening()
-        sel_w = []
-        if wkeys:
-            zw = self.model.predict(x, np.array([self.window.means[k] for k in wkeys]), jacobians=False)[0]
-            sel_w = [wkeys[i] for i in np.flatnonzero(self.model.in_footprint(zw, widen))]
-        if len(self._factorised):
-            zg = self.model.predict(x, self._factorised_pos, jacobians=False)[0]
-            sel_g = np.flatnonzero(self.model.in_footprint(zg, widen))
-        return sel_w, sel_g
+        nw = len(wkeys)
+        if not nw and not len(self._factorised):
+            return [], np.zeros(0, dtype=np.int64)
+        points = self._factorised_pos
+        if nw:
+            points = np.vstack([np.array([self.window.means[k] for k in wkeys]).reshape(nw, -1), points])
+        zhat = self.model.predict(x, points, jacobians=False)[0]
+        inside = self.model.in_footprint(zhat, self._widening())
+        return [wkeys[i] for i in np.flatnonzero(inside[:nw])], np.flatnonzero(inside[nw:])
 
     def _density(self, x, wkeys, gidx, R):
         """(ŷ (k, d), joint covariance (d·k, d·k), R_k (k, d, d)) of the candidates in the association space —

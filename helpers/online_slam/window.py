@@ -122,6 +122,13 @@ class LocalWindow:
             rows.append(np.arange(r, r + len(self.means[k])))
         return np.concatenate(rows)
 
+    def pose_covariance(self, sigma):
+        """Covariance (3, 3) of the current pose x = A_x a + n_x from ``sigma``, the joint covariance of the
+        anchors (``covariance(keys=[])`` restricted to x, without the other items)."""
+        A = self.A[:3]
+        out = A @ sigma @ A.T + self.P[:3, :3]
+        return 0.5 * (out + out.T)
+
     def covariance(self, keys, sigma):
         """Joint covariance of [x; items ``keys``; other factorised vertices o] from ``sigma``, the joint
         covariance of [anchors; o] of the factorisation (anchors in ``reset`` order)."""
