@@ -24,6 +24,7 @@ when the triangular factor they solve with has a zero diagonal entry.
 from __future__ import annotations
 
 import functools
+import math
 import numbers
 
 import numpy as np
@@ -99,6 +100,8 @@ def _confidence_level(n_sigma: float) -> float:
 
 
 def _check_n_sigma(n_sigma):
+    if type(n_sigma) is float and 0.0 < n_sigma < math.inf:
+        return                                          # the common case, without the ABC checks below
     if isinstance(n_sigma, bool) or not isinstance(n_sigma, numbers.Real) or not np.isfinite(n_sigma) \
             or n_sigma <= 0:
         raise ValueError(f"n_sigma must be a positive finite number, got {n_sigma!r}")

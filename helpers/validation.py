@@ -17,6 +17,8 @@ def integer(value, name: str, minimum: int | None = None, below: int | None = No
     ``name``. With ``allow_none`` None is accepted and returned as is."""
     if value is None and allow_none:
         return None
+    if type(value) is int and (minimum is None or value >= minimum) and (below is None or value < below):
+        return value                                    # the common case, without the ABC checks below
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or (minimum is not None and value < minimum) \
             or (below is not None and value >= below):
         if below is not None:

@@ -369,13 +369,17 @@ def _joint_d2(problem, idx) -> float:
 
 
 def finish(problem: AssociationProblem, idx, algorithm: str, stats=None, budget_exhausted=False,
-           d2=None) -> Association:
-    """Wrap an ``idx`` into an :class:`Association` (joint D² computed here unless given)."""
+           d2=None, jc_gates=None) -> Association:
+    """Wrap an ``idx`` into an :class:`Association` (joint D² computed here unless given; ``jc_gates[a]``, when
+    given, is the joint gate χ²_{d·a}(c) the caller already holds)."""
     idx = np.asarray(idx, dtype=np.intp).copy()
     idx.setflags(write=False)
     a = int(np.count_nonzero(idx >= 0))
     d2 = _joint_d2(problem, idx) if d2 is None else float(d2)
-    jc = True if a == 0 else bool(d2 <= problem.jc_threshold(a))
+    if a == 0:
+        jc = True
+    else:
+        jc = bool(d2 <= (problem.jc_threshold(a) if jc_gates is None else jc_gates[a]))
     return Association(idx=idx, d2=d2, n_pairings=a, jointly_compatible=jc, algorithm=algorithm,
                        n_sigma=problem.n_sigma, stats=dict(stats or {}), budget_exhausted=bool(budget_exhausted))
 

@@ -278,4 +278,4 @@ def jcbb(density, Y, n_sigma: float = 3.0, max_nodes: int | None = None, trace: 
         stats["trace"] = JCBBTrace(parent=parent, level=lev, landmark=landmark, obs=obs, d2=d2s,
                                    status=status, truncated=bool(truncated))
     return finish(problem, best_idx, "jcbb", stats, budget_exhausted=bool(exhausted),
-                  d2=0.0 if best_k == 0 else best_d2)
+                  d2=0.0 if best_k == 0 else best_d2, jc_gates=thresh)
