@@ -199,6 +199,29 @@ def test_models_inverse_prediction_and_spaces():
     assert o[1, 1] - p[1, 1] == pytest.approx(0.1)
 
 
+@pytest.mark.parametrize("fov", [2 * math.pi, math.pi, 0.5])
+def test_compiled_footprint_and_density_equal_their_numpy_references(fov):
+    rng = np.random.default_rng(11)
+    model = RangeBearingModel(10.0, field_of_view=fov)
+    for _ in range(100):
+        k = int(rng.integers(0, 30))
+        x, points = rng.normal(size=3) * [5.0, 5.0, 3.0], rng.normal(size=(k, 2)) * 8.0
+        widen = (abs(rng.normal()), 0.2 * abs(rng.normal()))
+        assert np.array_equal(model.candidates(x, points, widen), model.footprint_reference(x, points, widen))
+        k = max(k // 3, 1)
+        A = rng.normal(size=(3 + 2 * k, 3 + 2 * k))
+        B = rng.normal(size=(2, 2))
+        sig_v, R_obs = 0.01 * A @ A.T, B @ B.T + 0.01 * np.eye(2)
+        means = rng.normal(size=(k, 2)) * 8.0
+        got, ref = model.scan_density(x, means, sig_v, R_obs), model.scan_density_reference(x, means, sig_v, R_obs)
+        for a, b in zip(got, ref, strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
+    polar = RangeBearingModel(10.0, association_space="polar")        # no kernel: the reference itself
+    got = polar.scan_density(x, means, sig_v, R_obs)
+    for a, b in zip(got, polar.scan_density_reference(x, means, sig_v, R_obs), strict=True):
+        assert np.array_equal(a, b)
+
+
 def test_motion_jacobians_of_a_between_edge():
     a, b = VertexSE2(None, [0.0, 0.0, 0.3]), VertexSE2(None, [0.0, 0.0, 0.0])
     z = np.array([1.0, 0.2, 0.1])

@@ -228,8 +228,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
         points = self._factorised_pos
         if nw:
             points = np.vstack([np.array([self.window.means[k] for k in wkeys]).reshape(nw, -1), points])
-        zhat = self.model.predict(x, points, jacobians=False)[0]
-        inside = self.model.in_footprint(zhat, self._widening())
+        inside = self.model.candidates(x, points, self._widening())
         return [wkeys[i] for i in np.flatnonzero(inside[:nw])], np.flatnonzero(inside[nw:])
 
     def _density(self, x, wkeys, gidx, R):
@@ -238,16 +237,8 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
         sigma = self.columns.joint(self.anchors + [self._factorised[i].vertex for i in gidx])
         sig_v = self.window.covariance(wkeys, sigma)
         means = np.vstack([np.array([self.window.means[k] for k in wkeys]).reshape(-1, 2), self._factorised_pos[gidx]])
-        yhat, hx, hm, Rk = self.model.association_terms(x, means, R)
-        k, d, ld = len(means), self.model.dimension, self.model.landmark_dimension
-        ar = np.arange(k)
-        jm = np.zeros((k, d, k, ld))
-        jm[ar, :, ar, :] = hm
-        noise = np.zeros((k, d, k, d))
-        noise[ar, :, ar, :] = Rk
-        J = np.hstack([hx.reshape(d * k, 3), jm.reshape(d * k, ld * k)])
-        C = J @ sig_v @ J.T + noise.reshape(d * k, d * k)
-        return yhat, 0.5 * (C + C.T), Rk, sig_v, means
+        yhat, C, Rk = self.model.scan_density(x, means, sig_v, R)
+        return yhat, C, Rk, sig_v, means
 
     def _relative_sigma(self, x, means, sig_v, C, Rk):
         """``decisions.relative_sigma`` of the candidates. In the Cartesian association space ŷ_k is q_k itself,

@@ -47,6 +47,7 @@ import numpy as np
 
 from ..graph import EdgeRangeBearing, EdgeSE2PointXY, wrap_angle
 from ..validation import positive_number
+from . import scan_kernels
 
 __all__ = ["RangeBearingModel", "motion_jacobians", "unwrap_bearings"]
 
@@ -109,6 +110,32 @@ class RangeBearingModel:
         G = _polar_jacobian(np.hypot(q[:, 0], q[:, 1]), np.arctan2(q[:, 1], q[:, 0]))
         return q, jac[0], jac[1], G @ R @ G.transpose(0, 2, 1)
 
+    def scan_density(self, x, means, sig_v, R):
+        """(ŷ (k, d), C (d·k, d·k), R_k (k, d, d)): the k landmarks ``means`` (k, 2) predicted from pose x in the
+        association space, and their joint covariance C = J Σ_v Jᵀ + blockdiag(R_k), where Σ_v is the joint
+        covariance of [x; m_1 … m_k] and J = ∂ŷ/∂[x; m_1 … m_k] (``scan_density_reference``). In the Cartesian
+        space the numbers come from one compiled loop (``scan_kernels.cartesian_density``), else from the
+        reference."""
+        if self.association_space != "cartesian":
+            return self.scan_density_reference(x, means, sig_v, R)
+        return scan_kernels.cartesian_density(np.asarray(x, dtype=float), np.ascontiguousarray(means, dtype=float),
+                                              np.ascontiguousarray(sig_v, dtype=float),
+                                              np.ascontiguousarray(R, dtype=float))
+
+    def scan_density_reference(self, x, means, sig_v, R):
+        """``scan_density`` in numpy: ``association_terms`` gives ŷ, H_x, H_m and R_k; J stacks H_x (all rows)
+        beside the block diagonal of the H_m."""
+        yhat, hx, hm, Rk = self.association_terms(x, means, R)
+        k, d, ld = len(yhat), self.dimension, self.landmark_dimension
+        ar = np.arange(k)
+        jm = np.zeros((k, d, k, ld))
+        jm[ar, :, ar, :] = hm
+        noise = np.zeros((k, d, k, d))
+        noise[ar, :, ar, :] = Rk
+        J = np.hstack([hx.reshape(d * k, 3), jm.reshape(d * k, ld * k)])
+        C = J @ sig_v @ J.T + noise.reshape(d * k, d * k)
+        return yhat, 0.5 * (C + C.T), Rk
+
     def association_observations(self, Z, yhat):
         """(ŷ, Y): the predictions and the observations Z (d, m), made comparable in the association space."""
         if self.association_space == "polar":
@@ -125,6 +152,17 @@ class RangeBearingModel:
         gx = np.array([[1.0, 0.0, -r * s], [0.0, 1.0, r * c]])
         gz = np.array([[c, -r * s], [s, r * c]])
         return m, gx, gz
+
+    def candidates(self, x, points, widen):
+        """Boolean (k,): landmarks ``points`` (k, 2) predicted from pose x inside the footprint widened by
+        ``widen`` = (range, bearing) — ``footprint_reference``'s answer from one compiled loop
+        (``scan_kernels.in_footprint``)."""
+        return scan_kernels.in_footprint(np.asarray(x, dtype=float), np.ascontiguousarray(points, dtype=float),
+                                         self.max_range, 0.5 * self.field_of_view, float(widen[0]), float(widen[1]))
+
+    def footprint_reference(self, x, points, widen):
+        """``candidates`` in numpy: the edge's prediction, then ``in_footprint``."""
+        return self.in_footprint(self.predict(x, points, jacobians=False)[0], widen)
 
     def in_footprint(self, zhat, widen=None):
         """Boolean (k,): predicted observations inside the footprint widened by ``widen`` = (range, bearing)
