@@ -237,6 +237,15 @@ def test_motion_jacobians_of_a_between_edge():
     np.testing.assert_allclose(jn @ F, -jk, atol=1e-12)
     np.testing.assert_allclose(jn @ Q @ jn.T, np.linalg.inv(ODO_INFO), atol=1e-12)
 
+    class Frozen(EdgeSE2):                       # the new pose does not enter the error: nothing to propagate
+        @staticmethod
+        def evaluate(states, z, params, jacobians=True):
+            err, (ji, jj) = EdgeSE2.evaluate(states, z, params)
+            return err, [ji, 0.0 * jj]
+
+    with pytest.raises(ValueError, match="Frozen cannot propagate a pose"):
+        motion_jacobians(Frozen([a, b], measurement=z, information=ODO_INFO))
+
 
 # ------------------------------------------------------------------------------------------ through the front-end
 @pytest.mark.parametrize("algorithm", sorted(ALGORITHMS))

@@ -44,6 +44,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from ..graph import EdgeRangeBearing, EdgeSE2PointXY, wrap_angle
 from ..validation import positive_number
@@ -194,20 +195,29 @@ def motion_jacobians(edge):
     """(F, Q) of a binary pose–pose edge at its vertices' current estimates (module docstring).
 
     The edge class's vectorised model is called directly on the two estimates (one edge): the same numbers as
-    ``edge.jacobians()`` without its per-call checks (this runs once per tick)."""
+    ``edge.jacobians()`` without its per-call checks (this runs once per tick); F and Q then come from one
+    compiled call (``_propagation``)."""
     cls = type(edge)
     states = [edge.vertex(0).estimate[None, :], edge.vertex(1).estimate[None, :]]
     params = {name: np.asarray(edge.parameter(name), dtype=float)[None, ...] for name in cls.parameters}
     _, jac = cls.evaluate(states, edge.measurement[None, :], params, jacobians=True)
-    jk, jn = jac[0][0], jac[1][0]
-    try:
-        jn_inv = np.linalg.inv(jn)
-    except np.linalg.LinAlgError:
-        raise ValueError(f"edge: {type(edge).__name__} cannot propagate a pose (∂e/∂x_new is singular)") from None
-    cov = np.linalg.inv(edge.information)
-    F = -jn_inv @ jk
-    Q = jn_inv @ cov @ jn_inv.T
-    return F, 0.5 * (Q + Q.T)
+    F, Q, ok = _propagation(np.ascontiguousarray(jac[0][0]), np.ascontiguousarray(jac[1][0]),
+                            np.ascontiguousarray(edge.information, dtype=float))
+    if not ok:
+        raise ValueError(f"edge: {type(edge).__name__} cannot propagate a pose (∂e/∂x_new is singular)")
+    return F, Q
+
+
+@njit(cache=True)
+def _propagation(jk, jn, information):
+    """F = −J_{k+1}⁻¹ J_k and Q = ½(M + Mᵀ), M = J_{k+1}⁻¹ Ω⁻¹ J_{k+1}⁻ᵀ; ok False when J_{k+1} is singular."""
+    d = jn.shape[0]
+    if abs(np.linalg.det(jn)) == 0.0 or not np.all(np.isfinite(jn)):
+        return np.zeros((d, jk.shape[1])), np.zeros((d, d)), False
+    jn_inv = np.linalg.inv(jn)
+    F = -(jn_inv @ jk)
+    Q = jn_inv @ np.linalg.inv(information) @ jn_inv.T
+    return F, 0.5 * (Q + Q.T), True
 
 
 def unwrap_bearings(predicted, observed, angular=(1,)):
