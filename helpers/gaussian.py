@@ -44,7 +44,7 @@ def chi2inv(p, nu):
     Equals ``scipy.stats.chi2.ppf(p, nu)``. ``p`` must lie in [0, 1), ``nu`` must be positive.
     Scalars give a float; arrays broadcast.
     """
-    if isinstance(p, numbers.Real) and isinstance(nu, numbers.Real):
+    if (type(p) is float or isinstance(p, numbers.Real)) and (type(nu) in (int, float) or isinstance(nu, numbers.Real)):
         return _chi2inv_scalar(float(p), float(nu))    # the association gates ask for a few values very often
     return _chi2inv_array(p, nu)
 

@@ -121,6 +121,8 @@ def float_array(values, name: str) -> np.ndarray:
     """``values`` (any shape) as a float ndarray, without copying a float array. Text, None, bools, complex
     numbers and ragged or non-numeric sequences raise ValueError naming ``name`` (numpy would raise its own
     conversion error, or silently turn None into NaN and "1.5" into 1.5)."""
+    if type(values) is np.ndarray and values.dtype == np.float64:
+        return values                                   # the common case: nothing to convert
     if isinstance(values, np.ndarray) and values.dtype.kind in "iuf":
         return np.asarray(values, dtype=float)
     try:

@@ -76,7 +76,7 @@ def ambiguous_pairings(algorithm, problem, R, idx, options, tentative) -> list:
     with a tentative landmark that a confirmed one explains as well is ambiguous."""
     n_pairings = int(np.count_nonzero(idx >= 0))
     ic = problem.ic_d2 <= problem.ic_threshold
-    per_obs, per_cand = np.count_nonzero(ic, axis=0), np.count_nonzero(ic, axis=1)
+    per_obs, per_cand = ic.sum(axis=0), ic.sum(axis=1)
     out = []
     paired = np.flatnonzero(idx >= 0)
     for k in paired[(per_obs[idx[paired]] >= 2) | (per_cand[paired] >= 2)]:

@@ -193,7 +193,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
     def _check_scan(self, Z, R, information):
         d = self.model.dimension
         Z = float_array(Z, "Z")
-        if Z.ndim != 2 or Z.shape[0] != d or not np.all(np.isfinite(Z)):
+        if Z.ndim != 2 or Z.shape[0] != d or not np.isfinite(Z).all():
             raise ValueError(f"Z must be a finite ({d}, m) array of observations (one per column), got shape {Z.shape}")
         R = float_array(R, "R")
         key = R.tobytes() if R.shape == (d, d) else None
@@ -205,7 +205,9 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
             self._checked_noise = {key: np.linalg.inv(R)}       # the sensor's R rarely changes: checked once
         information = self._checked_noise[key] if information is None else float_array(information, "information")
         if information.shape == (d, d):
-            information = np.broadcast_to(information, (Z.shape[1], d, d))
+            full = np.empty((Z.shape[1], d, d))
+            full[:] = information
+            information = full
         if information.shape != (Z.shape[1], d, d):
             raise ValueError(f"information must be ({d}, {d}) or ({Z.shape[1]}, {d}, {d}), got {information.shape}")
         return Z, R, information
