@@ -47,13 +47,15 @@ def relative_sigma(x, means, sig_v) -> np.ndarray:
                       + jm @ smm @ jm.transpose(0, 2, 1))
 
 
-def largest_sd(P) -> np.ndarray:
+def largest_sd(P, check: bool = True) -> np.ndarray:
     """(k,) square roots of the largest eigenvalues of the symmetric 2 × 2 covariances P (k, 2, 2), closed
     form. In the Cartesian association space the front-end reads ``relative_sigma`` this way from the diagonal
-    blocks of the scan's density: C_kk − R_k = J_k Σ_v J_kᵀ, the same covariance of q_k."""
-    P = np.asarray(P, dtype=float)
-    if P.ndim != 3 or P.shape[1:] != (2, 2):
-        raise ValueError(f"P must be a (k, 2, 2) array of 2 × 2 covariances, got shape {P.shape}")
+    blocks of the scan's density: C_kk − R_k = J_k Σ_v J_kᵀ, the same covariance of q_k. ``check`` False skips
+    the shape check (the front-end's own float arrays, every scan)."""
+    if check:
+        P = np.asarray(P, dtype=float)
+        if P.ndim != 3 or P.shape[1:] != (2, 2):
+            raise ValueError(f"P must be a (k, 2, 2) array of 2 × 2 covariances, got shape {P.shape}")
     half = 0.5 * (P[:, 0, 0] + P[:, 1, 1])
     det = P[:, 0, 0] * P[:, 1, 1] - P[:, 0, 1] * P[:, 1, 0]
     return np.sqrt(np.maximum(half + np.sqrt(np.maximum(half * half - det, 0.0)), 0.0))

@@ -151,6 +151,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
         self.anchors = [pose_vertex]
         self.columns = MarginalColumns()
         self.columns.register_without_factorisation([pose_vertex])
+        self._anchor_sigma = self.columns.joint(self.anchors)
         self.window.reset([pose_vertex.dimension])
         self._note_pose(pose_vertex)
 
@@ -179,6 +180,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
         if not columns.refresh(self.graph, anchors + [t.vertex for t in roots]):
             return False
         self.columns, self.anchors, self._factorised = columns, anchors, roots
+        self._anchor_sigma = columns.joint(anchors)          # the anchors' joint covariance, read every scan
         self._factorised_pos = np.array([t.vertex.estimate for t in roots]).reshape(-1, self.model.landmark_dimension)
         self.window.reset([a.dimension for a in anchors])
         for t in survivors:
@@ -215,8 +217,8 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
     def _widening(self):
         """(range, bearing) widening of the footprint for candidates: the model's margins plus n_σ times the
         position and heading standard deviations of the current pose."""
-        P = self.window.pose_covariance(self.columns.joint(self.anchors))
-        pos = float(largest_sd(P[None, :2, :2])[0])
+        P = self.window.pose_covariance(self._anchor_sigma)
+        pos = float(largest_sd(P[None, :2, :2], check=False)[0])
         return (self.model.range_margin + self.n_sigma * pos,
                 self.model.bearing_margin + self.n_sigma * float(np.sqrt(max(P[2, 2], 0.0))))
 
@@ -249,7 +251,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
             return relative_sigma(x, means, sig_v)
         k, d = Rk.shape[:2]
         ar = np.arange(k)
-        return largest_sd(C.reshape(k, d, k, d)[ar, :, ar, :] - Rk)
+        return largest_sd(C.reshape(k, d, k, d)[ar, :, ar, :] - Rk, check=False)
 
     def _associate(self, yhat, C, Y, R, cand, cand_tracks):
         """The algorithm on candidates ``cand`` (their tracks ``cand_tracks``) and all of Y; ambiguous pairings
@@ -296,7 +298,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
             t0 = time.perf_counter()
             yhat, C, Rk, sig_v, means = self._density(x, wkeys, gidx, R)
             yu, Yu = self.model.association_observations(Z, yhat)
-            Rgate = Rk[int(np.argmax(np.trace(Rk, axis1=1, axis2=2)))]
+            Rgate = Rk[int(Rk.trace(axis1=1, axis2=2).argmax())]
             untrusted = (np.array([t.status == CONFIRMED for t in cands])
                          & (self._relative_sigma(x, means, sig_v, C, Rk) > self.closure_sigma))
             trusted = self._tracking_candidates(cands, untrusted)
