@@ -96,6 +96,43 @@ def test_lm_and_gn_reach_the_same_optimum_as_dense_reference():
     assert all(np.diff(g_lm.chi2_history) <= 1e-9)
 
 
+@pytest.mark.parametrize("algorithm", ["gn", "lm", "lm-gtsam", "default"])
+def test_optimize_after_hessian_factors_reuses_its_work_and_gives_the_same_numbers(algorithm):
+    fresh, poses_fresh, _ = small_slam(seed=2)
+    warm, poses_warm, _ = small_slam(seed=2)
+    for g in (fresh, warm):
+        g.initialize_optimization()
+    lower, d, perm = warm.hessian_factors()                 # H at the start: linearised and factorised once
+    count = warm.linear_solver.factorisations
+    assert warm.optimize(1, algorithm=algorithm) == fresh.optimize(1, algorithm=algorithm)
+    for a, b in zip(poses_warm, poses_fresh):
+        assert np.array_equal(a.estimate, b.estimate)
+    if algorithm == "gn":                                    # its one undamped solve used the factorisation above
+        assert warm.linear_solver.factorisations == count
+    # a factorisation of another matrix in between: optimize must not take the solver's factor as H's
+    other, poses_other, _ = small_slam(seed=2)
+    other.initialize_optimization()
+    other.hessian_factors()
+    solver = other.linear_solver
+    solver.factor(solver.pattern, 2.0 * other._current_linear_system().hessian_data)
+    assert other.optimize(1, algorithm="gn") == small_slam_gn_once(2)
+    # an estimate changed after hessian_factors: the cached linearisation is not used
+    moved, poses_moved, _ = small_slam(seed=2)
+    moved.initialize_optimization()
+    moved.hessian_factors()
+    poses_moved[1].set_estimate(poses_moved[1].estimate + 0.01)
+    reference, poses_reference, _ = small_slam(seed=2)
+    reference.initialize_optimization()
+    poses_reference[1].set_estimate(poses_reference[1].estimate + 0.01)
+    assert moved.optimize(1, algorithm="gn") == reference.optimize(1, algorithm="gn")
+
+
+def small_slam_gn_once(seed):
+    g, _, _ = small_slam(seed=seed)
+    g.initialize_optimization()
+    return g.optimize(1, algorithm="gn")
+
+
 def test_marginals_equal_dense_inverse():
     g, poses, lms = small_slam(seed=1)
     g.initialize_optimization()

@@ -112,6 +112,10 @@ def test_columns_give_the_joint_covariance_of_the_dense_inverse():
     assert cols.columns_solved == 3 + 2 + 3 + 2
     factors = hessian_factors(g)
     np.testing.assert_allclose(ldl_solve_columns(factors, [0, 5]), dense[:, [0, 5]], rtol=1e-9, atol=1e-12)
+    given = MarginalColumns()                          # the caller's factorisation: the same numbers, none made
+    assert given.refresh(g, verts, factors) and np.array_equal(given.joint(verts), J)
+    assert not given.refresh(g, verts, None)          # not positive definite: the previous columns stay
+    assert np.array_equal(given.joint(verts), J)
 
 
 @pytest.mark.parametrize("seed", range(4))

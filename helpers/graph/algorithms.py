@@ -117,10 +117,17 @@ class Trial:
     (H, b) at an accepted state is computed when first asked for (``system``): a run that stops right after
     accepting a step never linearises there (the optimiser then linearises on demand, e.g. for marginals)."""
 
-    def __init__(self, state):
+    def __init__(self, state, start=None):
+        """``start`` = (system, factored): the caller's LinearSystem at the vertices' current state (used instead
+        of linearising again) and whether the solver holds its undamped factorisation (the first undamped
+        ``solve`` then reuses it)."""
         self.state = state
         self.x = state.get()                  # the accepted state X
-        self._system = state.linearise("optimize: at the initial estimates")  # H, b at the accepted state
+        system, factored = (None, False) if start is None else start
+        if system is None:
+            system = state.linearise("optimize: at the initial estimates")
+        self._system = system                 # H, b at the accepted state
+        self._factored = bool(factored)       # the solver holds the undamped factorisation of self._system
         self.chi2 = self._system.chi2         # χ² at the accepted state
 
     @property
@@ -136,6 +143,9 @@ class Trial:
         return self.system.gradient
 
     def solve(self, damping=None):
+        if damping is None and self._factored:
+            return self.state.solve_factored(self.system)
+        self._factored = damping is None
         return self.state.solve(self.system, damping)
 
     def try_step(self, dx):
@@ -150,7 +160,7 @@ class Trial:
 
     def accept(self, chi2):
         """Keep the tried state (χ² = ``chi2``); it is linearised when (H, b) is next needed."""
-        self.x, self.chi2, self._system = self.state.get(), chi2, None
+        self.x, self.chi2, self._system, self._factored = self.state.get(), chi2, None, False
 
     def reject(self):
         """Go back to the accepted state."""
@@ -169,24 +179,24 @@ class Algorithm:
 
     name = None
 
-    def run(self, state, max_iterations, record):
+    def run(self, state, max_iterations, record, start=None):
         """Iterate from the vertices' state; returns (χ², LinearSystem or None) of the accepted state left in the
-        vertices (``Trial.finish``).
+        vertices (``Trial.finish``). ``start``: see ``Trial``.
 
         Any exception or interrupt (BaseException) restores the last accepted state before it propagates."""
         trial = None
-        start = state.get()
+        initial = state.get()
         try:
-            trial = self.make_trial(state)
+            trial = self.make_trial(state, start)
             self.iterate(trial, max_iterations, record)
             return trial.finish()
         except BaseException:
-            state.set(start if trial is None else trial.x)
+            state.set(initial if trial is None else trial.x)
             raise
 
-    def make_trial(self, state):
+    def make_trial(self, state, start=None):
         """The ``Trial`` over ``state`` (the default algorithm's moves SE(2) poses along arcs)."""
-        return Trial(state)
+        return Trial(state, start)
 
     def iterate(self, trial, max_iterations, record):
         raise NotImplementedError

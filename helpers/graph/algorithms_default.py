@@ -109,8 +109,8 @@ def arc_oplus(x, dx):
 class ArcTrial(Trial):
     """``Trial`` whose steps move the poses of every vertex class with VertexSE2's additive ⊞ along arcs."""
 
-    def __init__(self, state):
-        super().__init__(state)
+    def __init__(self, state, start=None):
+        super().__init__(state, start)
         self._arc_rows = [g.hessian_rows for g in state.structure.vertex_groups
                           if g.cls.oplus_batch is VertexSE2.oplus_batch]
 
@@ -129,8 +129,8 @@ class DefaultLevenbergMarquardt(Algorithm):
     def __init__(self, params=None):
         self.params = DefaultParams() if params is None else params
 
-    def make_trial(self, state):
-        return ArcTrial(state) if self.params.exp_map_poses else Trial(state)
+    def make_trial(self, state, start=None):
+        return ArcTrial(state, start) if self.params.exp_map_poses else Trial(state, start)
 
     def iterate(self, trial, max_iterations, record):
         p = self.params

@@ -196,6 +196,7 @@ class LDLSolver:
         self._trusted = False       # the last matrix was declared positive definite by its damping
         self._decision = None       # "auto": (nnz of the pattern decided on, whether CHOLMOD was chosen)
         self.ok = False
+        self.factorisations = 0     # calls of ``factor``: tells a caller whether the factorisation it made is current
         self.backend = backend
 
     @property
@@ -325,6 +326,7 @@ class LDLSolver:
         if np.shape(data) != (pattern.nnz,):
             raise ValueError(f"factor: data must hold the {pattern.nnz} CSC values of the pattern, got shape "
                              f"{np.shape(data)}")
+        self.factorisations += 1
         if pattern.n == 0:
             self.ok = True
             return self

@@ -233,6 +233,10 @@ class FreeState:
             raise nonfinite_error(what, nonfinite_edges(self.structure, self._estimates.buffer, True))
         return system
 
+    def solve_factored(self, system):
+        """dX = H⁻¹ b with the solver's current factorisation, which the caller knows to be that of H."""
+        return self.solver.solve(system.gradient)
+
     def solve(self, system, damping=None):
         """dX = (H + damping·I)⁻¹ b; ``damping=None``: undamped (H⁻¹ b)."""
         pattern = self.structure.pattern

@@ -59,6 +59,7 @@ class SparseOptimizer(GraphElements):
         self._structure = None
         self._solver = LDLSolver()
         self._linear_system = None  # LinearSystem (H data, b, χ²) at the current state, or None
+        self._factored = None       # (LinearSystem, solver count) of the last undamped factorisation of hessian_factors
         self.statistics = []
 
     def _values_changed(self):
@@ -142,9 +143,14 @@ class SparseOptimizer(GraphElements):
         if self._structure.dimension == 0:
             return self.chi2()
         t0 = time.perf_counter()
+        start = None
+        if self._linear_system is not None:       # linearised at this state already (e.g. by hessian_factors)
+            factored = (self._factored is not None and self._factored[0] is self._linear_system
+                        and self._factored[1] == self._solver.factorisations and self._solver.ok)
+            start = (self._linear_system, factored)
         self._linear_system = None  # stays None if the run raises (H is then recomputed when asked for)
         chi2, self._linear_system = method.run(self._free_state(), max_iterations,
-                                               lambda *row: self._record(*row, t0))
+                                               lambda *row: self._record(*row, t0), start=start)
         return chi2
 
     def _record(self, k, chi2, mu, rejected, t0):
@@ -191,6 +197,7 @@ class SparseOptimizer(GraphElements):
         self._solver.factor(self._solver.pattern, system.hessian_data)
         if not self._solver.ok:
             return None
+        self._factored = (system, self._solver.factorisations)   # an optimize() from here reuses it
         lower, d, perm = self._solver.qdldl.factors()
         return sp.csc_matrix(lower), np.asarray(d, dtype=float), np.asarray(perm, dtype=np.int64)
 

@@ -27,7 +27,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["MarginalColumns", "ldl_solve_columns", "hessian_factors"]
+__all__ = ["MarginalColumns", "ldl_solve_columns", "hessian_factors", "FACTORISE"]
+
+#: default of ``MarginalColumns.refresh``'s ``factors``: factorise H here
+FACTORISE = object()
 
 
 @njit(cache=True)
@@ -155,11 +158,13 @@ class MarginalColumns:
     def ready(self) -> bool:
         return self._factors is not None
 
-    def refresh(self, graph, vertices) -> bool:
+    def refresh(self, graph, vertices, factors=FACTORISE) -> bool:
         """Factorise the graph's undamped Hessian at its current state and remember the Hessian index of
         ``vertices`` (every vertex a later ``joint`` may name). Returns False — and keeps the previous
-        factorisation — when H is not positive definite."""
-        factors = hessian_factors(graph)
+        factorisation — when H is not positive definite. ``factors``: ``hessian_factors(graph)`` when the caller
+        has them already (the structure unchanged since), None when they were not positive definite."""
+        if factors is FACTORISE:
+            factors = hessian_factors(graph)
         if factors is None:
             return False
         lower, d, perm = factors

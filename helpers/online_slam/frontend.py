@@ -51,7 +51,7 @@ from ..gaussian import chi2inv, confidence_level
 from ..graph import VertexPointXY
 from ..validation import float_array, integer, positive_number
 from .algorithms import associate, check_algorithm, check_options
-from .covariance import MarginalColumns
+from .covariance import FACTORISE, MarginalColumns
 from .closure import LoopClosure
 from .decisions import ambiguous_pairings, largest_sd, relative_sigma, sub_problem
 from .models import motion_jacobians
@@ -164,10 +164,11 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
         self._note_pose(self.pose)
         self.stats["pose_time"] += time.perf_counter() - t0
 
-    def refresh(self) -> bool:
-        """Factorise H at the graph's current estimates (structure built) and re-anchor the window. With
-        ``verify_merges``, the merges made since the last refresh are first tested and the refused ones undone
-        (``verification``)."""
+    def refresh(self, factors=FACTORISE) -> bool:
+        """Factorise H at the graph's current estimates (structure built) and re-anchor the window. ``factors``:
+        the caller's ``graph.hessian_factors()`` (None: H was not positive definite), when it has them — taken at
+        the estimates it wants the covariances of. With ``verify_merges``, the merges made since the last refresh
+        are first tested and the refused ones undone (``verification``)."""
         self._verify_pending_merges()
         t0 = time.perf_counter()
         roots = self.confirmed_tracks()
@@ -177,7 +178,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
             if not any(t.parent is a for a in anchors):
                 anchors.append(t.parent)
         columns = MarginalColumns()
-        if not columns.refresh(self.graph, anchors + [t.vertex for t in roots]):
+        if not columns.refresh(self.graph, anchors + [t.vertex for t in roots], factors):
             return False
         self.columns, self.anchors, self._factorised = columns, anchors, roots
         self._anchor_sigma = columns.joint(anchors)          # the anchors' joint covariance, read every scan
