@@ -82,6 +82,14 @@ def test_sensor_corruption():
     assert empty is None and truth.size == 0
     shown, truth = SensorCorruption(0.0, 1.0, 10.0, cov, rng).scan(1.0, event, hide_ids=False)
     assert sorted(shown.landmark_ids.tolist()) == [5, 9]
+    for new in (shown, c.scan(2.0, event)[0] or shown):      # what the checking constructor would have built
+        checked = Event(new.time, new.type, new.data, new.covariance, landmark_ids=new.landmark_ids)
+        for name in ("time", "type", "data", "covariance", "offset", "landmark_ids"):
+            a, b = getattr(new, name), getattr(checked, name)
+            assert type(a) is type(b) and (a == b if not isinstance(a, np.ndarray) else
+                                            a.dtype == b.dtype and np.array_equal(a, b))
+    with pytest.raises(ValueError, match="covariance must be the laser's finite"):
+        SensorCorruption(0.0, 1.0, 10.0, np.eye(3), rng)
 
 
 @pytest.mark.parametrize("kwargs, name", [

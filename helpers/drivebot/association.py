@@ -76,6 +76,9 @@ class SensorCorruption:
         self.detection_probability = probability(detection_probability, "detection_probability")
         self.max_range = float(max_range)
         self.covariance = np.asarray(covariance, dtype=float)
+        if self.covariance.shape != (2, 2) or not np.isfinite(self.covariance).all():
+            raise ValueError(f"covariance must be the laser's finite (2, 2) noise covariance, got shape "
+                             f"{self.covariance.shape}")
         self.rng = rng
 
     def scan(self, time, event, hide_ids: bool = True):
@@ -100,8 +103,9 @@ class SensorCorruption:
             return None, ids
         order = rng.permutation(ids.size)
         z, ids = z[:, order], ids[order]
-        shown = np.arange(1, ids.size + 1) if hide_ids else ids
-        return Event(time, EventType.LANDMARK, z, cov, landmark_ids=shown), ids
+        shown = np.arange(1, ids.size + 1, dtype=np.int64) if hide_ids else ids
+        # the columns of a checked event, permuted or thinned, and finite clutter columns: valid by construction
+        return Event.derived(time, EventType.LANDMARK, z, cov, landmark_ids=shown), ids
 
 
 class AssociatingSLAMSystem(DriveBotSLAMSystem):

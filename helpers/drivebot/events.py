@@ -96,6 +96,18 @@ class Event:
         object.__setattr__(self, "data", data)
         object.__setattr__(self, "covariance", cov)
 
+    @classmethod
+    def derived(cls, time: float, type: EventType, data: np.ndarray, covariance: np.ndarray,
+                landmark_ids: np.ndarray | None = None, offset=None) -> "Event":
+        """An event whose parts are valid by construction — derived from a checked event (its columns permuted
+        or thinned, finite columns added, ids renumbered 1 … n) — built without the checks of the constructor.
+        ``SensorCorruption`` derives one per laser scan."""
+        event = object.__new__(cls)
+        for name, value in (("time", float(time)), ("type", type), ("data", data), ("covariance", covariance),
+                            ("offset", offset), ("landmark_ids", landmark_ids)):
+            object.__setattr__(event, name, value)
+        return event
+
 
 class EventQueue:
     """Time-ordered queue with the coursework's insertion rule (insert before the first event with time ≥ own).
