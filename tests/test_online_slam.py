@@ -11,6 +11,8 @@ from helpers.online_slam import (ALGORITHMS, ConfirmationRules, OnlineFrontEnd, 
 from helpers.online_slam.covariance import MarginalColumns, hessian_factors, ldl_solve_columns
 from helpers.online_slam.metrics import map_errors
 from helpers.online_slam.models import motion_jacobians, unwrap_bearings
+from helpers.online_slam.decisions import largest_sd
+from helpers.online_slam.scan_kernels import block_largest_sd
 from helpers.online_slam.window import LocalWindow
 
 R = np.diag([0.05, 0.01]) ** 2
@@ -220,6 +222,9 @@ def test_compiled_footprint_and_density_equal_their_numpy_references(fov):
         got, ref = model.scan_density(x, means, sig_v, R_obs), model.scan_density_reference(x, means, sig_v, R_obs)
         for a, b in zip(got, ref, strict=True):
             np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
+        C, Rk = got[1], got[2]
+        blocks = C.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :] - Rk
+        assert np.array_equal(block_largest_sd(C, Rk), largest_sd(blocks))
     polar = RangeBearingModel(10.0, association_space="polar")        # no kernel: the reference itself
     got = polar.scan_density(x, means, sig_v, R_obs)
     for a, b in zip(got, polar.scan_density_reference(x, means, sig_v, R_obs), strict=True):

@@ -55,6 +55,7 @@ from .covariance import FACTORISE, MarginalColumns
 from .closure import LoopClosure
 from .decisions import ambiguous_pairings, largest_sd, relative_sigma, sub_problem
 from .models import motion_jacobians
+from .scan_kernels import block_largest_sd
 from .tracks import CONFIRMED, DROPPED, TENTATIVE, ConfirmationRules, Track
 from .verification import MergeVerification
 from .window import LocalWindow
@@ -250,9 +251,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
         so the diagonal blocks of the density minus the noise, C_kk − R_k = J_k Σ_v J_kᵀ, are q_k's covariances."""
         if self.model.association_space != "cartesian":
             return relative_sigma(x, means, sig_v)
-        k, d = Rk.shape[:2]
-        ar = np.arange(k)
-        return largest_sd(C.reshape(k, d, k, d)[ar, :, ar, :] - Rk, check=False)
+        return block_largest_sd(C, Rk)                     # largest_sd of the blocks, compiled
 
     def _associate(self, yhat, C, Y, R, cand, cand_tracks):
         """The algorithm on candidates ``cand`` (their tracks ``cand_tracks``) and all of Y; ambiguous pairings

@@ -11,6 +11,10 @@ kernel with its reference on random inputs. ``benchmarks/online_slam.py --sectio
     The prediction is ``EdgeRangeBearing``'s, z = [‖m − p‖, wrap(atan2(m_y − y, m_x − x) − ψ)]. The test is
     z_r ≤ r_max + dr and, for a sensor narrower than a full turn (half_fov < π), |z_β| ≤ half_fov + db.
 
+``block_largest_sd(C, Rk)``
+    For each 2 × 2 diagonal block of C, the square root of the largest eigenvalue of C_kk − R_k (in the Cartesian
+    space, the covariance of the landmark in the vehicle frame): ``decisions.largest_sd`` on the blocks.
+
 ``cartesian_density(x, means, sig_v, R)``
     The candidates' predicted observations in the Cartesian association space, and their joint covariance:
         ŷ_i = q_i = R(ψ)ᵀ(m_i − p)                             (``EdgeSE2PointXY`` at z = 0)
@@ -27,7 +31,7 @@ from numba import njit
 
 from ..graph.kernels import wrap_angle_scalar
 
-__all__ = ["in_footprint", "cartesian_density"]
+__all__ = ["in_footprint", "cartesian_density", "block_largest_sd"]
 
 
 @njit(cache=True)
@@ -102,3 +106,19 @@ def cartesian_density(x, means, sig_v, R):
             C[row, col] = v
             C[col, row] = v
     return yhat, C, Rk
+
+
+@njit(cache=True)
+def block_largest_sd(C, Rk):
+    """(k,) largest standard deviations of the 2 × 2 matrices C_kk − R_k (``decisions.largest_sd``'s formula)."""
+    k = Rk.shape[0]
+    out = np.empty(k)
+    for i in range(k):
+        a = C[2 * i, 2 * i] - Rk[i, 0, 0]
+        b = C[2 * i, 2 * i + 1] - Rk[i, 0, 1]
+        c = C[2 * i + 1, 2 * i] - Rk[i, 1, 0]
+        e = C[2 * i + 1, 2 * i + 1] - Rk[i, 1, 1]
+        half = 0.5 * (a + e)
+        det = a * e - b * c
+        out[i] = np.sqrt(max(half + np.sqrt(max(half * half - det, 0.0)), 0.0))
+    return out
