@@ -183,6 +183,26 @@ def test_window_is_the_linear_gaussian_propagation():
     assert w.keys == [] and w.P.shape == (3, 3)
 
 
+def test_compiled_window_prediction_equals_the_numpy_reference():
+    rng = np.random.default_rng(5)
+    for trial in range(50):
+        compiled, reference = LocalWindow(), LocalWindow()
+        for w in (compiled, reference):
+            w.reset([3, 3] if trial % 2 else [3], pose_anchor=trial % 2)
+        for i in range(int(rng.integers(0, 4))):
+            Gx, Gz = rng.standard_normal((2, 3)), rng.standard_normal((2, 2))
+            for w in (compiled, reference):
+                w.add_landmark(i, rng.standard_normal(2), Gx, Gz, R)
+        for _ in range(5):
+            F = np.eye(3) + 0.1 * rng.standard_normal((3, 3))
+            B = rng.standard_normal((3, 3))
+            compiled.predict(F, 0.01 * B @ B.T)
+            reference.predict_reference(F, 0.01 * B @ B.T)
+        np.testing.assert_allclose(compiled.A, reference.A, rtol=1e-13, atol=1e-14)
+        np.testing.assert_allclose(compiled.P, reference.P, rtol=1e-13, atol=1e-14)
+        assert np.array_equal(compiled.P, compiled.P.T)
+
+
 def test_models_inverse_prediction_and_spaces():
     model = RangeBearingModel(10.0)
     x = np.array([1.0, -2.0, 0.7])

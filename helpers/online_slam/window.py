@@ -29,6 +29,7 @@ optimiser fuses everything.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 __all__ = ["LocalWindow"]
 
@@ -82,7 +83,12 @@ class LocalWindow:
 
     # ------------------------------------------------------------------------------------------- operations
     def predict(self, F, Q):
-        """x' = F x + n with Cov(n) = Q."""
+        """x' = F x + n with Cov(n) = Q: ``predict_reference``'s numbers from one compiled call (it runs every tick;
+        ``_predict`` below, tested equal to the reference)."""
+        _predict(self.A, self.P, np.ascontiguousarray(F, dtype=float), np.ascontiguousarray(Q, dtype=float))
+
+    def predict_reference(self, F, Q):
+        """x' = F x + n with Cov(n) = Q, in numpy: A_x ← F A_x, P_e ← T P_e Tᵀ + blkdiag(Q, 0), T = blkdiag(F, I)."""
         self.A[:3] = F @ self.A[:3]
         self.P[:3, :] = F @ self.P[:3, :]
         self.P[:, :3] = self.P[:, :3] @ F.T
@@ -144,3 +150,32 @@ class LocalWindow:
         out[k:, :k] = cross.T
         out[k:, k:] = sigma[na:, na:]
         return 0.5 * (out + out.T)
+
+
+@njit(cache=True)
+def _predict(A, P, F, Q):
+    """``LocalWindow.predict_reference`` in place: the rows of x in A and P become F times themselves, the columns of
+    x in P times Fᵀ, then P_xx gains Q and is symmetrised."""
+    na, n = A.shape[1], P.shape[0]
+    row = np.empty(max(na, n))
+    tmp = np.empty((3, max(na, n)))
+    for a in range(3):                                  # A_x ← F A_x
+        for c in range(na):
+            tmp[a, c] = F[a, 0] * A[0, c] + F[a, 1] * A[1, c] + F[a, 2] * A[2, c]
+    A[:3, :na] = tmp[:, :na]
+    for a in range(3):                                  # P[x, :] ← F P[x, :]
+        for c in range(n):
+            tmp[a, c] = F[a, 0] * P[0, c] + F[a, 1] * P[1, c] + F[a, 2] * P[2, c]
+    P[:3, :] = tmp[:, :n]
+    for r in range(n):                                  # P[:, x] ← P[:, x] Fᵀ
+        for a in range(3):
+            row[a] = P[r, 0] * F[a, 0] + P[r, 1] * F[a, 1] + P[r, 2] * F[a, 2]
+        P[r, 0], P[r, 1], P[r, 2] = row[0], row[1], row[2]
+    for a in range(3):
+        for b in range(3):
+            P[a, b] += Q[a, b]
+    for a in range(3):
+        for b in range(a + 1, 3):
+            v = 0.5 * (P[a, b] + P[b, a])
+            P[a, b] = v
+            P[b, a] = v
