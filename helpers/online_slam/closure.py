@@ -33,7 +33,7 @@ class LoopClosure:
     def _tracking_candidates(self, cands, untrusted):
         """Indices of the candidates the tracking stage uses: the trusted ones, without a merged track whose old
         landmark is itself a trusted candidate (the two are one vertex)."""
-        trusted = np.flatnonzero(~untrusted)
+        trusted = np.flatnonzero(~untrusted).tolist()
         roots = {cands[i].key for i in trusted if cands[i].alias_of < 0}
         return np.array([i for i in trusted if cands[i].alias_of not in roots], dtype=np.int64)
 
@@ -42,9 +42,12 @@ class LoopClosure:
         that was untrusted when they were started, and has since been pulled in by an optimisation) are merged
         into it: d² = (m_t − m_l)ᵀ S⁻¹ (m_t − m_l) ≤ χ²_2 with S = Σ_tt + Σ_ll − Σ_tl − Σ_lt from the joint state
         covariance. Returns the confirmable (track, column) pairs that remain for the loop-closure stage."""
-        olds = [i for i in trusted if cands[i].status == CONFIRMED and cands[i].alias_of < 0]
+        trusted = trusted.tolist()
         todo = [i for i in trusted if cands[i].status == TENTATIVE and cands[i].hits >= self.rules.n_confirm]
-        if not olds or not todo:
+        if not todo:
+            return confirmable
+        olds = [i for i in trusted if cands[i].status == CONFIRMED and cands[i].alias_of < 0]
+        if not olds:
             return confirmable
         ld = self.model.landmark_dimension
         merged = set()

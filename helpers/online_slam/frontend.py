@@ -308,8 +308,8 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
                 discard[rejected] = True
                 if self._exclusion_gate is not None:
                     discard |= (d2 <= self._exclusion_gate).any(axis=0)
-                for a, i in enumerate(trusted):
-                    self._outcome(cands[i], int(idx[a]), x, obs0, Z, information, scan, edges, confirmable, result)
+                for i, j in zip(trusted.tolist(), idx.tolist()):
+                    self._outcome(cands[i], j, x, obs0, Z, information, scan, edges, confirmable, result)
             confirmable = self._merge_duplicates(confirmable, cands, trusted, untrusted, sig_v, means, scan, edges,
                                                  result)
             closure = (yu, C, Yu, Rgate, np.flatnonzero(untrusted), cands)
