@@ -201,6 +201,15 @@ def test_compiled_window_prediction_equals_the_numpy_reference():
         np.testing.assert_allclose(compiled.A, reference.A, rtol=1e-13, atol=1e-14)
         np.testing.assert_allclose(compiled.P, reference.P, rtol=1e-13, atol=1e-14)
         assert np.array_equal(compiled.P, compiled.P.T)
+        na = sum(compiled.anchor_dims)
+        M = rng.standard_normal((na + 4, na + 4))
+        sigma = M @ M.T
+        for keys in ([], list(compiled.keys), list(compiled.keys)[::-1]):
+            got, ref = compiled.covariance(keys, sigma), compiled.covariance_reference(keys, sigma)
+            np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+            assert np.array_equal(got, got.T)
+        np.testing.assert_allclose(compiled.pose_covariance(sigma[:na, :na]),
+                                   compiled.covariance_reference([], sigma[:na, :na]), rtol=1e-12, atol=1e-12)
 
 
 def test_models_inverse_prediction_and_spaces():

@@ -122,6 +122,8 @@ class LocalWindow:
     # ------------------------------------------------------------------------------------------- queries
     def item_rows(self, keys):
         """Row indices of x followed by the items ``keys`` (in that order)."""
+        if not keys:
+            return np.arange(3)
         rows = [np.arange(3)]
         for k in keys:
             r = self.rows[k]
@@ -131,13 +133,16 @@ class LocalWindow:
     def pose_covariance(self, sigma):
         """Covariance (3, 3) of the current pose x = A_x a + n_x from ``sigma``, the joint covariance of the
         anchors (``covariance(keys=[])`` restricted to x, without the other items)."""
-        A = self.A[:3]
-        out = A @ sigma @ A.T + self.P[:3, :3]
-        return 0.5 * (out + out.T)
+        return _covariance(self.A, self.P, np.arange(3), np.ascontiguousarray(sigma, dtype=float))
 
     def covariance(self, keys, sigma):
         """Joint covariance of [x; items ``keys``; other factorised vertices o] from ``sigma``, the joint
-        covariance of [anchors; o] of the factorisation (anchors in ``reset`` order)."""
+        covariance of [anchors; o] of the factorisation (anchors in ``reset`` order): ``covariance_reference``'s
+        numbers from one compiled call (``_covariance``; the front-end asks for it on every scan)."""
+        return _covariance(self.A, self.P, self.item_rows(keys), np.ascontiguousarray(sigma, dtype=float))
+
+    def covariance_reference(self, keys, sigma):
+        """``covariance`` in numpy: [[A Σ_aa Aᵀ + P_e, A Σ_ao], [Σ_oa, Σ_oo]] for the rows of x and ``keys``."""
         na = self.A.shape[1]
         rows = self.item_rows(keys)
         A = self.A[rows]
@@ -179,3 +184,37 @@ def _predict(A, P, F, Q):
             v = 0.5 * (P[a, b] + P[b, a])
             P[a, b] = v
             P[b, a] = v
+
+
+@njit(cache=True)
+def _covariance(A, P, rows, sigma):
+    """``LocalWindow.covariance_reference``: with A_r = A[rows], the blocks A_r Σ_aa A_rᵀ + P[rows, rows] and
+    A_r Σ_ao (both from T = A_r Σ[:na, :]), Σ_oo, then ½(C + Cᵀ)."""
+    na, k, n = A.shape[1], rows.size, sigma.shape[0]
+    q = n - na
+    T = np.zeros((k, n))
+    for i in range(k):
+        for j in range(na):
+            a = A[rows[i], j]
+            if a != 0.0:
+                for c in range(n):
+                    T[i, c] += a * sigma[j, c]
+    out = np.empty((k + q, k + q))
+    for i in range(k):
+        for e in range(k):
+            s = 0.0
+            for j in range(na):
+                s += T[i, j] * A[rows[e], j]
+            out[i, e] = s + P[rows[i], rows[e]]
+        for c in range(q):
+            out[i, k + c] = T[i, na + c]
+            out[k + c, i] = T[i, na + c]
+    for c in range(q):
+        for e in range(q):
+            out[k + c, k + e] = sigma[na + c, na + e]
+    for i in range(k + q):
+        for e in range(i + 1, k + q):
+            v = 0.5 * (out[i, e] + out[e, i])
+            out[i, e] = v
+            out[e, i] = v
+    return out
