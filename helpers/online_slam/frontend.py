@@ -242,7 +242,9 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
         window items first, then factorised landmarks — and their state: Σ_v of [x; m_1 … m_k] and the means."""
         sigma = self.columns.joint(self.anchors + [self._factorised[i].vertex for i in gidx])
         sig_v = self.window.covariance(wkeys, sigma)
-        means = np.vstack([np.array([self.window.means[k] for k in wkeys]).reshape(-1, 2), self._factorised_pos[gidx]])
+        means = self._factorised_pos[gidx]
+        if wkeys:
+            means = np.vstack([np.array([self.window.means[k] for k in wkeys]).reshape(-1, 2), means])
         yhat, C, Rk = self.model.scan_density(x, means, sig_v, R)
         return yhat, C, Rk, sig_v, means
 
