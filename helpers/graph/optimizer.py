@@ -132,6 +132,9 @@ class SparseOptimizer(GraphElements):
         also be a parameters object (``DefaultParams``, ``LevenbergMarquardtParams``, ``GaussNewtonParams``,
         ``GTSAMLevenbergMarquardtParams``), which then sets every parameter.
         ``statistics`` then holds one dict per outer iteration (chi2, mu, rejected steps, time).
+        A linearisation already made at the current estimates (``hessian``, ``gradient``, ``hessian_factors``) is
+        used as the first one, and after ``hessian_factors`` the first undamped solve (Gauss–Newton's) reuses its
+        factorisation when the solver has factorised nothing since: the same numbers, without repeating the work.
 
         Raises NonFiniteError (naming the edges) when χ², H or b is not finite at the start or at a tried step;
         on any exception or interrupt the vertices hold the last accepted state.
