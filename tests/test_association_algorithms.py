@@ -326,6 +326,9 @@ def test_a_prepared_problem_rejects_bad_input_by_name():
         problem_from_cov(mu, P[:4, :4], Y)
     with pytest.raises(ValueError, match="P must be symmetric"):
         problem_from_cov(mu, P + np.triu(np.ones_like(P), 1), Y)
+    with pytest.raises(ValueError, match="P must be a finite"):
+        problem_from_cov(mu, np.where(P == P.max(), np.nan, P), Y)
+    assert problem_from_cov(mu, P + 1e-15 * np.triu(np.ones_like(P), 1), Y).P.shape == P.shape   # round-off passes
     with pytest.raises(ValueError, match="P: a landmark's covariance block is not positive definite"):
         problem_from_cov(mu, -P, Y)
     with pytest.raises(ValueError, match="Y must be finite"):

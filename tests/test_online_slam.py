@@ -405,6 +405,25 @@ def test_bad_input_names_the_argument():
         w.fe.process_scan(np.array([[1.0], [0.0]]), -R)
     with pytest.raises(ValueError, match="information"):
         w.fe.process_scan(np.array([[1.0], [0.0]]), R, information=np.eye(3))
+    # the compiled paths read exactly the shapes they expect: anything else is refused before them
+    x = np.zeros(3)
+    with pytest.raises(ValueError, match="points must be a"):
+        model.candidates(x, np.zeros((4, 3)), (1.0, 0.1))
+    with pytest.raises(ValueError, match="x must be a pose"):
+        model.candidates(np.zeros(2), np.zeros((4, 2)), (1.0, 0.1))
+    with pytest.raises(ValueError, match="sig_v must be"):
+        model.scan_density(x, np.zeros((2, 2)), np.eye(5), R)
+    with pytest.raises(ValueError, match="means must be a"):
+        model.scan_density(x, np.zeros(4), np.eye(7), R)
+    window = LocalWindow()
+    window.reset([3, 3])
+    with pytest.raises(ValueError, match="F and Q must be"):
+        window.predict(np.eye(2), np.eye(3))
+    with pytest.raises(ValueError, match="sigma must be a square covariance of the 6 anchor rows"):
+        window.covariance([], np.eye(4))
+    with pytest.raises(ValueError, match="sigma must be a square"):
+        window.pose_covariance(np.zeros((6, 5)))
+    assert window.P.shape == (3, 3) and np.array_equal(window.A[:, 3:], np.zeros((3, 3)))   # nothing changed
 
 
 def test_relative_sigma_from_the_density_equals_the_state_form():

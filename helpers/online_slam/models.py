@@ -117,11 +117,15 @@ class RangeBearingModel:
         covariance of [x; m_1 … m_k] and J = ∂ŷ/∂[x; m_1 … m_k] (``scan_density_reference``). In the Cartesian
         space the numbers come from one compiled loop (``scan_kernels.cartesian_density``), else from the
         reference."""
+        x, means = _pose(x), _points(means, "means")
+        sig_v, R = np.ascontiguousarray(sig_v, dtype=float), np.ascontiguousarray(R, dtype=float)
+        n = 3 + 2 * len(means)
+        if sig_v.shape != (n, n) or R.shape != (2, 2):
+            raise ValueError(f"sig_v must be ({n}, {n}) and R (2, 2) for {len(means)} landmarks, got {sig_v.shape} "
+                             f"and {R.shape}")
         if self.association_space != "cartesian":
             return self.scan_density_reference(x, means, sig_v, R)
-        return scan_kernels.cartesian_density(np.asarray(x, dtype=float), np.ascontiguousarray(means, dtype=float),
-                                              np.ascontiguousarray(sig_v, dtype=float),
-                                              np.ascontiguousarray(R, dtype=float))
+        return scan_kernels.cartesian_density(x, means, sig_v, R)
 
     def scan_density_reference(self, x, means, sig_v, R):
         """``scan_density`` in numpy: ``association_terms`` gives ŷ, H_x, H_m and R_k; J stacks H_x (all rows)
@@ -158,8 +162,9 @@ class RangeBearingModel:
         """Boolean (k,): landmarks ``points`` (k, 2) predicted from pose x inside the footprint widened by
         ``widen`` = (range, bearing) — ``footprint_reference``'s answer from one compiled loop
         (``scan_kernels.in_footprint``)."""
-        return scan_kernels.in_footprint(np.asarray(x, dtype=float), np.ascontiguousarray(points, dtype=float),
-                                         self.max_range, 0.5 * self.field_of_view, float(widen[0]), float(widen[1]))
+        dr, db = widen
+        return scan_kernels.in_footprint(_pose(x), _points(points, "points"), self.max_range,
+                                         0.5 * self.field_of_view, float(dr), float(db))
 
     def footprint_reference(self, x, points, widen):
         """``candidates`` in numpy: the edge's prediction, then ``in_footprint``."""
@@ -182,6 +187,22 @@ def _polar_jacobian(r, b):
     G = np.empty((len(r), 2, 2))
     G[:, 0, 0], G[:, 0, 1], G[:, 1, 0], G[:, 1, 1] = c, -r * s, s, r * c
     return G
+
+
+def _pose(x):
+    """``x`` as a (3,) float array (the compiled paths read exactly three numbers), else ValueError."""
+    x = np.ascontiguousarray(x, dtype=float)
+    if x.shape != (3,):
+        raise ValueError(f"x must be a pose (3,), got shape {x.shape}")
+    return x
+
+
+def _points(points, name):
+    """``points`` as a contiguous (k, 2) float array, else ValueError naming ``name``."""
+    points = np.ascontiguousarray(points, dtype=float)
+    if points.ndim != 2 or points.shape[1] != 2:
+        raise ValueError(f"{name} must be a (k, 2) array of 2-D points, got shape {points.shape}")
+    return points
 
 
 def _non_negative(value, name):

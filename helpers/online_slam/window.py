@@ -85,7 +85,10 @@ class LocalWindow:
     def predict(self, F, Q):
         """x' = F x + n with Cov(n) = Q: ``predict_reference``'s numbers from one compiled call (it runs every tick;
         ``_predict`` below, tested equal to the reference)."""
-        _predict(self.A, self.P, np.ascontiguousarray(F, dtype=float), np.ascontiguousarray(Q, dtype=float))
+        F, Q = np.ascontiguousarray(F, dtype=float), np.ascontiguousarray(Q, dtype=float)
+        if F.shape != (3, 3) or Q.shape != (3, 3):
+            raise ValueError(f"F and Q must be (3, 3), got {F.shape} and {Q.shape}")
+        _predict(self.A, self.P, F, Q)
 
     def predict_reference(self, F, Q):
         """x' = F x + n with Cov(n) = Q, in numpy: A_x ← F A_x, P_e ← T P_e Tᵀ + blkdiag(Q, 0), T = blkdiag(F, I)."""
@@ -133,13 +136,22 @@ class LocalWindow:
     def pose_covariance(self, sigma):
         """Covariance (3, 3) of the current pose x = A_x a + n_x from ``sigma``, the joint covariance of the
         anchors (``covariance(keys=[])`` restricted to x, without the other items)."""
-        return _covariance(self.A, self.P, np.arange(3), np.ascontiguousarray(sigma, dtype=float))
+        return _covariance(self.A, self.P, np.arange(3), self._sigma(sigma))
+
+    def _sigma(self, sigma):
+        """``sigma`` as a square float array that starts with the anchors' rows, else ValueError."""
+        sigma = np.ascontiguousarray(sigma, dtype=float)
+        na = self.A.shape[1]
+        if sigma.ndim != 2 or sigma.shape[0] != sigma.shape[1] or sigma.shape[0] < na:
+            raise ValueError(f"sigma must be a square covariance of the {na} anchor rows (and others), got shape "
+                             f"{sigma.shape}")
+        return sigma
 
     def covariance(self, keys, sigma):
         """Joint covariance of [x; items ``keys``; other factorised vertices o] from ``sigma``, the joint
         covariance of [anchors; o] of the factorisation (anchors in ``reset`` order): ``covariance_reference``'s
         numbers from one compiled call (``_covariance``; the front-end asks for it on every scan)."""
-        return _covariance(self.A, self.P, self.item_rows(keys), np.ascontiguousarray(sigma, dtype=float))
+        return _covariance(self.A, self.P, self.item_rows(keys), self._sigma(sigma))
 
     def covariance_reference(self, keys, sigma):
         """``covariance`` in numpy: [[A Σ_aa Aᵀ + P_e, A Σ_ao], [Σ_oa, Σ_oo]] for the rows of x and ``keys``."""
