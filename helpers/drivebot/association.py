@@ -174,7 +174,7 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
             self.frontend.refresh()
             return chi2
         max_iterations = integer(max_iterations, "max_iterations", minimum=0)
-        self._prepare_optimization()
+        super().optimize(0)                     # the hook, the edge removal and the structure; linearises H once
         factors = hessian_factors(self.graph)
         chi2 = float(self.graph.optimize(min(max_iterations, self.association_iterations),
                                          algorithm=self.association_algorithm))

@@ -302,17 +302,13 @@ class DriveBotSLAMSystem:
         removed: coursework Q3a).
         """
         max_iterations = integer(max_iterations, "max_iterations", minimum=0)
-        self._prepare_optimization()
-        return float(self.graph.optimize(max_iterations, algorithm=self.optimization_algorithm))
-
-    def _prepare_optimization(self) -> None:
-        """What precedes every optimisation: the hook, the prediction-edge removal (if requested), the structure."""
         if self.pre_optimization_hook is not None:  # Q3b: a pruning heuristic edits the graph here
             self._built = False        # (the structure is rebuilt even if the hook raises part-way)
             self.pre_optimization_hook(self)
         if self.remove_prediction_edges:  # Q3a: delete the prediction edges before optimising
             self._delete_prediction_edges()
         self.ensure_structure()
+        return float(self.graph.optimize(max_iterations, algorithm=self.optimization_algorithm))
 
     def chi2(self) -> float:
         self.ensure_structure()
