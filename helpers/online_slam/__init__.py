@@ -2,6 +2,7 @@
 
 Modules by responsibility (each imports only modules listed before it, and the layers below the package):
 
+    scan_kernels    compiled per-scan paths (footprint test, Cartesian density), each tested against its reference
     models          the measurement model (prediction and Jacobians from the edge class, inverse observation,
                     footprint, association space) and the motion propagation of any odometry edge
     covariance      joint marginal covariances of a few vertices from one LDLᵀ factorisation (columns of H⁻¹)
