@@ -276,3 +276,21 @@ def test_trace_uses_only_the_trace_codes():
     assert set(tr.status.tolist()) <= {TRACE_EXPANDED, TRACE_JC_FAIL, TRACE_BOUND, TRACE_BEST}
     assert {tr.status_name(i) for i in range(tr.status.size)} <= {"expanded", "jc_fail", "bound", "best"}
     assert np.all(tr.obs[tr.status == TRACE_JC_FAIL] >= 0)                # JC failures are pairings
+
+
+def test_the_compiled_tree_arrays_follow_level_order():
+    """``_tree_arrays`` (the compiled search's levels and candidate lists) against ``level_order`` and the IC matrix
+    of the readable tier, on random distance matrices with many ties."""
+    from helpers.association.jcbb import _tree_arrays
+    rng = np.random.default_rng(12)
+    for _ in range(200):
+        n, m = int(rng.integers(0, 8)), int(rng.integers(0, 8))
+        d2 = rng.integers(0, 6, size=(n, m)).astype(float)
+        levels, cand_ptr, cand_obs, last_level = _tree_arrays(d2, 2.5)
+        compatible = d2 <= 2.5
+        assert levels.tolist() == level_order(compatible).tolist()
+        for t, k in enumerate(levels):
+            assert cand_obs[cand_ptr[t]:cand_ptr[t + 1]].tolist() == np.flatnonzero(compatible[k]).tolist()
+        for i in range(m):
+            on = [t for t, k in enumerate(levels) if compatible[k, i]]
+            assert last_level[i] == (on[-1] if on else -1)

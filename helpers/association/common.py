@@ -238,7 +238,7 @@ def problem_from_cov(mu, P, Y, n_sigma: float = 3.0) -> AssociationProblem:
     """
     Y = float_array(Y, "Y")
     if Y.ndim != 2 or Y.shape[0] == 0:
-        Y = _observations(Y)                         # raises the message for the shape
+        _observations(Y)                             # raises the message for the shape
     d = Y.shape[0]
     mu = float_array(mu, "mu")
     if mu.ndim != 2 or mu.shape[1] != d:
