@@ -51,8 +51,9 @@ from ..gaussian import chi2inv, confidence_level
 from ..graph import VertexPointXY
 from ..validation import float_array, integer, positive_number
 from .algorithms import associate, check_algorithm, check_options
-from .covariance import FACTORISE, MarginalColumns
+from .covariance import FACTORISE, MarginalColumns, hessian_factors
 from .closure import LoopClosure
+from .late import LateAssociation
 from .decisions import ambiguous_pairings, largest_sd, relative_sigma, sub_problem
 from .models import motion_jacobians
 from .scan_kernels import block_largest_sd
@@ -87,7 +88,7 @@ def _flag(value, name):
     return bool(value)
 
 
-class OnlineFrontEnd(LoopClosure, MergeVerification):
+class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
     """Online data association for a growing pose graph (module docstring).
 
     Parameters
@@ -103,6 +104,9 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
     closure_sigma, closure_support, closure_patience : the loop-closure stage (module docstring, step 4).
     verify_merges, verify_n_sigma, verify_iterations : test every merge after the next optimisation and undo the
         refused ones, re-optimising with that many iterations (``verification``; default off).
+    late_association, late_n_sigma, late_radius : keep the observations left out of the map (dropped tentative landmarks,
+        discarded observations) and pair them with a confirmed landmark after a later optimisation (``late``;
+        default off).
 
     Use: ``start(first_pose)``; per new pose ``add_pose(odometry_edge)``; per scan ``process_scan(Z, R)``; after
     each optimisation ``refresh()``.
@@ -112,7 +116,8 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
                  algorithm_options=None, rules: ConfirmationRules | None = None, landmark_factory=None,
                  reject_ambiguous: bool = True, closure_sigma: float = 0.5, closure_support: int = 2,
                  closure_patience: int = 50, verify_merges: bool = False, verify_n_sigma: float = 3.0,
-                 verify_iterations: int = 10):
+                 verify_iterations: int = 10, late_association: bool = False, late_n_sigma: float = 2.0,
+                 late_radius: float = 5.0):
         self.algorithm = check_algorithm(data_association)
         self.options = check_options(self.algorithm, algorithm_options)
         self.n_sigma = positive_number(n_sigma, "n_sigma")
@@ -144,6 +149,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
         ex = self.rules.exclusion_n_sigma
         self._exclusion_gate = None if ex is None else float(chi2inv(confidence_level(ex), model.dimension))
         self._init_verification(verify_merges, verify_n_sigma, verify_iterations)
+        self._init_late(late_association, late_n_sigma, late_radius)
 
     # ================================================================================= poses and refreshes
     def start(self, pose_vertex) -> None:
@@ -178,6 +184,8 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
         for t in survivors:
             if not any(t.parent is a for a in anchors):
                 anchors.append(t.parent)
+        if factors is FACTORISE:
+            factors = hessian_factors(self.graph)
         columns = MarginalColumns()
         if not columns.refresh(self.graph, anchors + [t.vertex for t in roots], factors):
             return False
@@ -189,6 +197,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
             m, gx, gz = self.model.inverse(t.parent.estimate, t.z0)
             a = next(i for i, v in enumerate(anchors) if v is t.parent)
             self.window.add_independent(t.key, m, a, gx, gz @ t.R0 @ gz.T)
+        self._pair_orphans(factors)
         self.stats["refreshes"] += 1
         self.stats["refresh_time"] += time.perf_counter() - t0
         return True
@@ -318,6 +327,8 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
             self.stats["association_time"] += time.perf_counter() - t0
             self.stats["scans_associated"] += 1
             self.stats["candidates"] += len(cands)
+        for j in np.flatnonzero((result.labels < 0) & discard).tolist():
+            self._pool(self.pose, Z[:, j], information[j], obs0 + j)
         for j in np.flatnonzero((result.labels < 0) & ~discard):
             t = self._new_track(x, int(j), Z[:, j], R, information[j], obs0 + int(j), scan, result)
             if self.rules.n_confirm == 1:
@@ -383,6 +394,8 @@ class OnlineFrontEnd(LoopClosure, MergeVerification):
         t.pending = []
 
     def _drop(self, t, scan, result):
+        for pose, z, info, obs in t.pending:
+            self._pool(pose, z, info, obs)
         self.window.remove(t.key)
         t.status, t.end, t.pending = DROPPED, scan, []
         result.dropped.append(t.key)

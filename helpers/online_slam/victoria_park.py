@@ -253,7 +253,7 @@ def run_victoria_park(data_association: str | None = "jcbb", optimization_period
                       rules: ConfirmationRules | None = None, association_space: str = "cartesian",
                       closure_sigma: float = 2.0, closure_support: int = 1, measurement_sigmas=None,
                       odometry_scale: float = 1.0, verify_merges: bool = False, verify_n_sigma: float = 3.0,
-                      known_id_reference: bool = True,
+                      late_association: bool = False, late_n_sigma: float = 2.0, known_id_reference: bool = True,
                       batch_reference: bool = False, progress: bool = False,
                       scan_probe=None) -> VictoriaParkResults:
     """Process Victoria Park online with the ids hidden (module docstring). ``data_association=None`` runs the
@@ -276,7 +276,8 @@ def run_victoria_park(data_association: str | None = "jcbb", optimization_period
                               association_space=association_space)
     options = {"n_sigma": n_sigma, "algorithm_options": algorithm_options,
                "rules": VICTORIA_PARK_RULES if rules is None else rules, "closure_sigma": closure_sigma,
-               "closure_support": closure_support, "verify_merges": verify_merges, "verify_n_sigma": verify_n_sigma}
+               "closure_support": closure_support, "verify_merges": verify_merges, "verify_n_sigma": verify_n_sigma,
+               "late_association": late_association, "late_n_sigma": late_n_sigma}
     stream = victoria_park_scans(read_dataset("victoria_park"))
     stream = _with_sigmas(stream, measurement_sigmas, odometry_scale)
     graph, fe, truth, chi2, n_opt, seconds = _process(stream, data_association, model, period, iterations,
