@@ -12,6 +12,8 @@ Modules by responsibility (each imports only modules listed before it, and the l
     decisions       individual compatibility, relative uncertainty, ambiguity of a pairing
     closure         loop closure: trusted candidates, duplicates, merging tentative landmarks into old ones
     verification    merges tested after the next optimisation (score test of the split) and undone if refused
+    late            observations left out of the map (dropped tentative landmarks, discarded ones) pooled and paired
+                    after a later optimisation, or made into a landmark when they agree among themselves
     frontend        ``OnlineFrontEnd``: candidates, joint predicted density, tracking, bookkeeping
     metrics         precision, recall, agreement after the best one-to-one matching; map error
     victoria_park   ``run_victoria_park``: the real dataset, associated online, and its report
