@@ -24,8 +24,18 @@ hindsight. A pooled observation that pairs with nothing stays in the pool and is
 optimisation; only landmarks within ``late_radius`` metres of its inverse observation are tested (a cheap
 Euclidean pre-selection before any covariance is formed).
 
-The confirmation rule is unchanged: a dropped tentative landmark is still dropped — it never becomes a landmark of
-its own — and a pooled observation only ever joins a landmark that was confirmed on other evidence.
+**Unmapped landmarks.** Pooled observations that no landmark explains may be one landmark the front-end never
+confirmed: a tree whose sightings were too far apart for its tentative landmark to survive ``n_miss`` or
+``max_age``. After the pairing, the orphans that no landmark holds inside the exclusion gate are grouped around each
+orphan (those within ``late_radius`` / 2 of its inverse observation, one per pose: a scan sees a landmark once). A
+group of at least ``rules.n_confirm`` passes when one point explains all of it (``group_test``: χ² of the inverse
+observations about their weighted mean, on their joint covariance with the poses' cross-covariances, against
+χ²_{d(n−1)} at ``late_n_sigma``); while it fails, the member with the largest normalised residual is removed. A
+group that passes becomes a confirmed landmark, each of its observations an edge to it — the confirmation rule
+applied with hindsight: ``n_confirm`` consistent observations, from the scans received so far.
+
+A tentative landmark is still dropped as the rule says; its observations only ever reach the map through a
+landmark that a later test confirms.
 """
 from __future__ import annotations
 
@@ -182,7 +192,8 @@ class LateAssociation:
         return []
 
     def _new_landmark(self, members):
-        """A confirmed landmark from pooled observations (its vertex at their least-squares point)."""
+        """A confirmed landmark from pooled observations: its vertex starts at the mean of their inverse
+        observations (the next optimisation moves it), and each of them becomes an edge to it."""
         items = [self.orphans[j] for j in members]
         first = items[0]
         key = len(self.tracks)
