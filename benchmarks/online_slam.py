@@ -13,7 +13,8 @@ Sections (each prints a markdown table):
 - ``nn``: q2_b over ``--seeds`` with no clutter and 2 per scan, "nn" against "jcbb": where NN fails.
 - ``vp``: Victoria Park (``run_victoria_park``) with "jcbb": agreement, landmarks, time, final χ² next to the
   known-id run of the same pipeline and the loader's batch solution; with the file's noise model, a re-weighted
-  one, notebook 23's tuned setting, and that setting with late association (``online_slam.late``). Targets: agreement ≥ 0.95 in ≤ 120 s, χ² within 10 % of the known-id solution's.
+  one, notebook 23's tuned setting, and that setting with late association (``online_slam.late``). Targets:
+  agreement ≥ 0.95 in ≤ 120 s, χ² within 10 % of the known-id solution's.
 
 BLAS is pinned to one thread (shared 2-core machine). Times are machine- and load-dependent; CPU time is given
 next to wall time because other jobs share the machine.

@@ -53,12 +53,12 @@ from ..validation import float_array, integer, positive_number
 from .algorithms import associate, check_algorithm, check_options
 from .covariance import FACTORISE, MarginalColumns, hessian_factors
 from .closure import LoopClosure
-from .late import LateAssociation
 from .decisions import ambiguous_pairings, largest_sd, relative_sigma, sub_problem
 from .models import motion_jacobians
 from .scan_kernels import block_largest_sd
 from .tracks import CONFIRMED, DROPPED, TENTATIVE, ConfirmationRules, Track
 from .verification import MergeVerification
+from .late import LateAssociation
 from .window import LocalWindow
 
 __all__ = ["OnlineFrontEnd", "ScanResult"]
@@ -104,9 +104,9 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
     closure_sigma, closure_support, closure_patience : the loop-closure stage (module docstring, step 4).
     verify_merges, verify_n_sigma, verify_iterations : test every merge after the next optimisation and undo the
         refused ones, re-optimising with that many iterations (``verification``; default off).
-    late_association, late_n_sigma, late_radius : keep the observations left out of the map (dropped tentative landmarks,
-        discarded observations) and pair them with a confirmed landmark after a later optimisation (``late``;
-        default off).
+    late_association, late_n_sigma, late_radius : keep the observations left out of the map (dropped tentative
+        landmarks, discarded observations) and pair them with a confirmed landmark after a later optimisation, or
+        make a landmark of those that agree among themselves (``late``; default off).
 
     Use: ``start(first_pose)``; per new pose ``add_pose(odometry_edge)``; per scan ``process_scan(Z, R)``; after
     each optimisation ``refresh()``.

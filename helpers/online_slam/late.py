@@ -10,19 +10,22 @@ the map:
   with it, or with an equally good alternative (``decisions.ambiguous_pairings``).
 
 With ``late_association`` on, each of them is kept in a pool — its pose vertex, measurement z and the information Ω
-of the edge it would become (R = Ω⁻¹ below) — instead of being forgotten. After every optimisation (``refresh``) each pooled observation is tested against the
-confirmed landmarks near it, at the graph's new estimates. For landmark l and the observation's pose x, with
-ẑ = h(x, m_l), the edge's Jacobians H = [H_x H_m] and Σ the joint marginal covariance of (x, m_l) from the
-factorisation the refresh already made (``covariance.MarginalColumns``, only these vertices' columns),
+of the edge it would become (R = Ω⁻¹ below) — instead of being forgotten. After every optimisation (``refresh``)
+each pooled observation is tested against the confirmed landmarks near it, at the graph's new estimates. For
+landmark l and the observation's pose x, with ẑ = h(x, m_l), the edge's Jacobians H = [H_x H_m] and Σ the joint
+marginal covariance of (x, m_l) from the factorisation the refresh already made (``covariance.MarginalColumns``,
+only these vertices' columns),
 
     ν = z − ẑ  (bearing wrapped),   S = H Σ Hᵀ + R,   d² = νᵀ S⁻¹ ν.
 
-The observation is paired with l — a range-bearing edge from its pose to l's vertex — when d² is inside the
-front-end's pairing gate (χ²_d at ``n_sigma``) and no other landmark is inside the exclusion gate (χ²_d at
-``rules.exclusion_n_sigma``; the pairing gate when that is None): the same rule as the tracking stage, applied with
-hindsight. A pooled observation that pairs with nothing stays in the pool and is tested again after the next
-optimisation; only landmarks within ``late_radius`` metres of its inverse observation are tested (a cheap
-Euclidean pre-selection before any covariance is formed).
+The observation is paired with l — a range-bearing edge from its pose to l's vertex — when d² is inside the late
+gate (χ²_d at ``late_n_sigma``) and no other landmark is inside the exclusion gate (χ²_d at
+``rules.exclusion_n_sigma``, or the late gate when that is wider or None). The late gate is narrower than the
+tracking gate (default 2σ): a late decision is never revisited. On Victoria Park's tuned setting the right late
+pairings have d² below 2, while a 4σ gate also let through wrong ones with d² up to 17, and they collapsed the run
+(``benchmarks/RESULTS.md``). A pooled observation that pairs with nothing stays in the pool and is tested again
+after the next optimisation. Only landmarks within ``late_radius`` metres of its inverse observation are tested: a
+cheap Euclidean pre-selection before any covariance is formed.
 
 **Unmapped landmarks.** Pooled observations that no landmark explains may be one landmark the front-end never
 confirmed: a tree whose sightings were too far apart for its tentative landmark to survive ``n_miss`` or
