@@ -49,7 +49,7 @@ import numpy as np
 from ..association.common import problem_from_cov
 from ..gaussian import chi2inv, confidence_level
 from ..graph import VertexPointXY
-from ..validation import float_array, integer, positive_number
+from ..validation import boolean, float_array, integer, positive_number
 from .algorithms import associate, check_algorithm, check_options
 from .covariance import FACTORISE, MarginalColumns, hessian_factors
 from .closure import LoopClosure
@@ -80,12 +80,6 @@ class ScanResult:
 
 def _default_factory(key, estimate):
     return VertexPointXY(None, estimate)
-
-
-def _flag(value, name):
-    if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be True or False, got {value!r}")
-    return bool(value)
 
 
 class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
@@ -126,7 +120,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
             raise ValueError(f"rules must be a ConfirmationRules, got {type(self.rules).__name__}")
         if landmark_factory is not None and not callable(landmark_factory):
             raise ValueError(f"landmark_factory must be callable(key, estimate) or None, got {landmark_factory!r}")
-        self.reject_ambiguous = _flag(reject_ambiguous, "reject_ambiguous")
+        self.reject_ambiguous = boolean(reject_ambiguous, "reject_ambiguous")
         self.closure_sigma = positive_number(closure_sigma, "closure_sigma")
         self.closure_support = integer(closure_support, "closure_support", minimum=1)
         self.closure_patience = integer(closure_patience, "closure_patience", minimum=1)

@@ -46,7 +46,7 @@ import numpy as np
 
 from ..gaussian import chi2inv, confidence_level
 from ..graph import wrap_angle
-from ..validation import positive_number
+from ..validation import boolean, positive_number
 from .covariance import MarginalColumns
 from .tracks import CONFIRMED, Track
 
@@ -69,9 +69,7 @@ class LateAssociation:
     """Mixin of ``OnlineFrontEnd``: the pool of left-out observations and their pairing after each refresh."""
 
     def _init_late(self, late_association, late_n_sigma, late_radius):
-        if not isinstance(late_association, (bool, np.bool_)):
-            raise ValueError(f"late_association must be True or False, got {late_association!r}")
-        self.late_association = bool(late_association)
+        self.late_association = boolean(late_association, "late_association")
         self.late_radius = positive_number(late_radius, "late_radius")
         self.late_n_sigma = positive_number(late_n_sigma, "late_n_sigma")
         self._late_gate = float(chi2inv(confidence_level(self.late_n_sigma), self.model.dimension))

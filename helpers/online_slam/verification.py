@@ -51,7 +51,7 @@ from bisect import bisect_right
 import numpy as np
 
 from ..gaussian import chi2inv, confidence_level
-from ..validation import integer, positive_number
+from ..validation import boolean, integer, positive_number
 from .covariance import MarginalColumns
 from .tracks import CONFIRMED
 
@@ -93,9 +93,7 @@ class MergeVerification:
     """Mixin of ``OnlineFrontEnd``: merge verification with undo (module docstring)."""
 
     def _init_verification(self, verify_merges, verify_n_sigma, verify_iterations):
-        if not isinstance(verify_merges, (bool, np.bool_)):
-            raise ValueError(f"verify_merges must be True or False, got {verify_merges!r}")
-        self.verify_merges = bool(verify_merges)
+        self.verify_merges = boolean(verify_merges, "verify_merges")
         self.verify_n_sigma = positive_number(verify_n_sigma, "verify_n_sigma")
         self.verify_iterations = integer(verify_iterations, "verify_iterations", minimum=1)
         level = confidence_level(self.verify_n_sigma)
