@@ -40,12 +40,14 @@ class GraphElements:
         self._rebuild_needed = True     # something other than additions changed since the last build
         self._hessian_index = np.zeros(0, dtype=np.int64)
         self._dirty_edge_classes = set()  # edge classes whose values were edited since the last build/refresh
+        self._edit_count = 0            # structural changes and edge-value edits so far (growth is not counted)
 
     def _values_changed(self):
         """An estimate, measurement, information or parameter changed (subclasses drop cached linearisations)."""
 
     def _structure_changed(self):
         """Elements removed, a vertex fixed or freed, an edge's vertex replaced: the next build starts afresh."""
+        self._edit_count += 1
         self._structure_stale = True
         self._rebuild_needed = True
 
@@ -273,6 +275,7 @@ class GraphElements:
         """The edge's measurement, information or a parameter changed: copy them into its store row."""
         self._edge_stores[type(edge)].write_values(edge)
         self._dirty_edge_classes.add(type(edge))
+        self._edit_count += 1
         self._values_changed()
 
     def _replace_edge_vertex(self, edge, k, old, new):
