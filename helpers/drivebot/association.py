@@ -126,6 +126,7 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
                  closure_sigma: float = 0.5, closure_support: int = 2, closure_patience: int = 50,
                  verify_merges: bool = False, verify_n_sigma: float = 3.0, **slam_options):
         super().__init__(config, **slam_options)
+        self._check_algorithm()
         self.association_period = integer(association_period, "association_period", minimum=1)
         self.association_iterations = integer(association_iterations, "association_iterations", minimum=1)
         self.association_algorithm = one_of(association_algorithm, "association_algorithm", ("lm", "gn", "lm-gtsam"))
@@ -158,6 +159,12 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
         self.frontend.process_scan(event.data, event.covariance, information=self._information(event.covariance))
         self._built = False
 
+    def _check_algorithm(self):
+        if self.optimization_algorithm == "incremental":
+            raise ValueError("optimization_algorithm='incremental' cannot be combined with data association: the "
+                             "front-end reads its covariances from the batch optimiser's factorisation; use 'lm', "
+                             "'gn' or 'lm-gtsam'")
+
     def _association_only(self) -> bool:
         return self.optimization_period is None and self.step_number % self.association_period == 0
 
@@ -169,6 +176,7 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
         association factorises H at the current estimates first — the front-end's covariances — and then runs at
         most ``association_iterations`` iterations of ``association_algorithm``, whose first Gauss–Newton step
         reuses that factorisation (module docstring)."""
+        self._check_algorithm()
         if not self._association_only():
             chi2 = super().optimize(max_iterations)
             self.frontend.refresh()

@@ -29,7 +29,7 @@ from scipy.linalg.lapack import dtbtrs
 from .chain_kernel import eliminate_chain, solve_chain
 from .errors import GraphError
 
-__all__ = ["ChainFactor", "NotPositiveDefiniteError"]
+__all__ = ["ChainFactor", "NotPositiveDefiniteError", "add_slot_terms_reference"]
 
 
 class NotPositiveDefiniteError(GraphError):
@@ -160,3 +160,24 @@ def _band_entries(Rkk, Rk1):
     c1 = ((k1 + 1) * p + jj.ravel()).ravel()
     v1 = Rk1[:N - 1].reshape(-1)
     return np.r_[r0, r1], np.r_[c0, c1], np.r_[v0, v1]
+
+
+def add_slot_terms_reference(factor, slots, ew, J, starts, dims):
+    """``chain_kernel.add_slot_terms`` in numpy: each edge's whitened Jacobians placed at their local columns
+    (a dense J_loc over (x_k, x_{k+1}, m)), then A_k += J_locᵀ J_loc and a_k += J_locᵀ ẽ (the map slot, −1,
+    into Am, am over the map columns)."""
+    p, D = factor.p, factor.D
+    s = 2 * p + D
+    J_loc = np.zeros((len(ew), ew.shape[1], s))
+    offsets = np.r_[0, np.cumsum(dims)]
+    for e in range(len(ew)):
+        for u, d in enumerate(dims):
+            if starts[e, u] >= 0:
+                J_loc[e, :, starts[e, u]:starts[e, u] + d] = J[e, :, offsets[u]:offsets[u] + d]
+    H = np.einsum("emi,emj->eij", J_loc, J_loc)
+    b = np.einsum("emi,em->ei", J_loc, ew)
+    chain = slots >= 0
+    np.add.at(factor.A[:, :s, :s], slots[chain], H[chain])
+    np.add.at(factor.a[:, :s], slots[chain], b[chain])
+    factor.Am[:D, :D] += H[~chain][:, 2 * p:, 2 * p:].sum(axis=0)
+    factor.am[:D] += b[~chain][:, 2 * p:].sum(axis=0)

@@ -65,6 +65,29 @@ class IncrementalSmoother:
         self.last = {}
         self._reset()
 
+    def delta_of(self, vertex):
+        """δ of ``vertex`` from the last update (zeros for a fixed vertex; its estimate is θ̄ ⊞ δ)."""
+        h = self._handle(vertex)
+        c, col = self._chain_of.buffer[h], self._map_of.buffer[h]
+        if c >= 0:
+            return self.delta[0][c].copy()
+        if col >= 0:
+            return self.delta[1][col:col + type(vertex).dimension].copy()
+        return np.zeros(type(vertex).dimension)
+
+    def linearisation_point(self, vertex):
+        """θ̄ of ``vertex``: where its edges were last linearised."""
+        vs = self.graph._vertex_store
+        h = self._handle(vertex)
+        return self._lin[vs.offset.buffer[h]:vs.offset.buffer[h] + vs.dimension.buffer[h]].copy()
+
+    def _handle(self, vertex):
+        if not isinstance(vertex, BaseVertex) or vertex.graph is not self.graph:
+            raise ValueError(f"vertex must be a vertex of the smoother's graph, got {vertex!r}")
+        if self.delta is None or vertex._h >= self._vertices_done:
+            raise ValueError(f"{vertex!r} was added after the last update(); call update() first")
+        return vertex._h
+
     # ----------------------------------------------------------------------------------------- bookkeeping
     def _reset(self):
         p = self.chain_class.dimension
@@ -77,6 +100,8 @@ class IncrementalSmoother:
         self._map_dims = []
         self._rows_done = {}                          # edge store → rows seen
         self._slot = {}                               # edge store → GrowableArray of slot codes per row
+        self._slot_rows = {}                          # slot code → [(edge store, row), …]
+        self._chi2_pos = {}                           # edge store → per vertex slot, GrowableArray of positions
         self._lin = np.zeros(0)                       # θ̄, laid out as the graph's estimate array
         self._written = np.zeros(0)                   # the estimate array as the last update left it
         self._edits = self.graph._edit_count
@@ -120,6 +145,7 @@ class IncrementalSmoother:
                 codes.append(code)
                 if code != _IGNORED:
                     dirty.add(code)
+                    self._slot_rows.setdefault(code, []).append((store, row))
             self._rows_done[store] = store.alive.size
         return dirty
 
@@ -170,7 +196,33 @@ class IncrementalSmoother:
             self.delta = (np.zeros((0, f.p)), np.zeros(0))
         self._write_estimates()
         self.last = {"eliminated": eliminated, "relinearised": relinearised, "restarted": restarted}
-        return total_chi2(self.graph._vertex_store, self.graph._edge_stores)
+        return self._chi2()
+
+    def _chi2(self):
+        """χ² = Σ eᵀΩe of every live edge at the estimates (``linearise.total_chi2``'s sum, with the positions of
+        each edge's vertices kept between updates instead of gathered again)."""
+        vs = self.graph._vertex_store
+        est = vs.estimates.buffer
+        total = 0.0
+        for store in self.graph._edge_stores.values():
+            n = store.alive.size
+            if n == 0:
+                continue
+            cached = self._chi2_pos.setdefault(store, [GrowableArray((d,), np.int64) for d in store.slot_dimensions])
+            new = store.handles.values[cached[0].size:n]
+            for k, (positions, d) in enumerate(zip(cached, store.slot_dimensions)):
+                positions.extend(vs.state_indices(new[:, k], d))
+            live = store.alive.values
+            rows = slice(None) if live.all() else np.flatnonzero(live)
+            states = [est[positions.values[rows]] for positions in cached]
+            params = {name: column.values[rows] for name, column in store.params.items()}
+            e, _ = store.cls.evaluate(states, store.measurements.values[rows], params, jacobians=False)
+            check_model_output(store.cls, e, None, len(states[0]), False)
+            ew = np.einsum("eij,ej->ei", store.whitening.values[rows], e)
+            total += float(np.einsum("ei,ei->", ew, ew))
+        if not np.isfinite(total):
+            return total_chi2(vs, self.graph._edge_stores)    # names the edges (NonFiniteError)
+        return total
 
     def _relinearise(self, dirty):
         """θ̄_j ← θ̄_j ⊞ δ_j for every variable whose δ is over the threshold; adds the slots of their edges to
@@ -207,11 +259,13 @@ class IncrementalSmoother:
         if _MAP_SLOT in slots:
             f.Am[:] = 0.0
             f.am[:] = 0.0
-        wanted = np.array(slots, dtype=np.int64)
-        for store, codes in self._slot.items():
-            rows = np.flatnonzero(np.isin(codes.values, wanted))
-            if len(rows):
-                self._add_terms(store, rows, codes.values[rows])
+        by_store = {}
+        for slot in slots:
+            for store, row in self._slot_rows.get(slot, ()):
+                by_store.setdefault(store, []).append(row)
+        for store, rows in by_store.items():
+            rows = np.array(rows, dtype=np.int64)
+            self._add_terms(store, rows, self._slot[store].values[rows])
 
     def _add_terms(self, store, rows, slots):
         """Linearise ``rows`` of ``store`` at θ̄ and add J̃ᵀJ̃, J̃ᵀẽ into their slots (local layout (x_k, x_{k+1}, m);
