@@ -89,9 +89,28 @@ def test_threshold_zero_and_skip_one_iterate_gauss_newton_to_the_batch_optimum()
             v.set_estimate(v.estimate + rng.normal(0, 0.02, v.dimension))
     assert g.chi2() > optimum * (1 + 1e-3)
     sm = IncrementalSmoother(g, VertexSE2, relinearize_threshold=0.0, relinearize_skip=1)
+    start_estimates = {v: v.estimate for v in g.vertices()}
     chi2 = [sm.update() for _ in range(25)]     # large residuals: Gauss–Newton converges linearly here
     assert np.all(np.diff(chi2) < 0)
     assert abs(chi2[-1] - optimum) <= 1e-8 * optimum
+    after_updates = {v: v.estimate for v in g.vertices()}
+    for v, x in start_estimates.items():                     # the same 25 solves inside one update
+        v.set_estimate(x)
+    one = IncrementalSmoother(g, VertexSE2, relinearize_threshold=0.0, relinearize_skip=1)
+    assert one.update(max_solves=25) == pytest.approx(chi2[-1], rel=1e-12)
+    assert one.last["solves"] == 25
+    for v, x in after_updates.items():
+        np.testing.assert_allclose(v.estimate, x, rtol=0, atol=1e-10)
+
+
+def test_solves_stop_when_no_step_is_over_the_threshold():
+    g, rng, poses, points = start(11, ticks=30)
+    sm = IncrementalSmoother(g, VertexSE2, relinearize_threshold=0.05)
+    sm.update(max_solves=30)
+    assert 1 < sm.last["solves"] < 30
+    dc, dm = sm.delta
+    assert max(np.abs(dc).max(), np.abs(dm).max()) <= 0.05
+    assert_delta_is_batch_step(g, sm)
 
 
 @pytest.mark.parametrize("seed", [0, 4])
@@ -234,7 +253,7 @@ def test_drivebot_every_step_incremental_ends_at_the_batch_optimum():
     inc = run_question("q2_b", seed=0, optimization_period=1, optimization_algorithm="incremental")
     sm = inc.system._smoother
     assert sm.restarts == 0
-    assert np.isfinite(inc.optimization_times).all() and set(inc.optimization_iterations) == {1}
+    assert np.isfinite(inc.optimization_times).all() and np.median(inc.optimization_iterations) == 1
     final = [batch.chi2_history[-1], inc.chi2_history[-1]]
     assert abs(final[1] - final[0]) <= 1e-3 * final[0]          # iSAM2's rule: close to, not at, the optimum
     x_batch = batch.system.landmark_estimates()[0]
@@ -242,6 +261,14 @@ def test_drivebot_every_step_incremental_ends_at_the_batch_optimum():
     assert np.abs(x_batch - x_inc).max() < 0.05
     every5 = run_question("q2_b", seed=0, optimization_algorithm="incremental")   # the question's period, 5
     assert abs(every5.chi2_history[-1] - final[0]) <= 1e-3 * final[0]
+
+
+def test_drivebot_one_final_incremental_update_from_dead_reckoning_converges():
+    from helpers.drivebot import run_question
+    batch = run_question("q2_c", seed=0)                       # no optimisation until the end of the run
+    inc = run_question("q2_c", seed=0, optimization_algorithm="incremental")
+    assert inc.optimization_iterations[-1] > 1                 # several solves in that one update
+    assert abs(inc.final_chi2 - batch.final_chi2) <= 1e-3 * batch.final_chi2
 
 
 def test_drivebot_incremental_with_data_association_is_refused():

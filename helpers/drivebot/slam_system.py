@@ -25,8 +25,8 @@ Optimisation: ``recommend_optimization()`` is ``step_number % period == 0`` with
 inf: never; the runner then optimises once at the end). ``optimize(n)`` first runs the pre-optimisation hook
 (if any) and removes prediction edges when requested (all, or all but the first), then builds the structure
 and runs n LM iterations; it returns χ². With ``optimization_algorithm="incremental"`` it instead makes one
-update of a ``graph.IncrementalSmoother`` (no structure build: the factor of the last update is extended; every
-graph change other than growth, such as Q3's edits, makes that update start afresh).
+update of a ``graph.IncrementalSmoother`` of at most n solves (no structure build: the factor of the last update is
+extended; every graph change other than growth, such as Q3's edits, makes that update start afresh).
 
 Options are validated on construction *and* on assignment (``system.optimization_period = 0`` raises); the
 configuration cannot be replaced after construction. ``remove_prediction_edges`` needs an observation sensor
@@ -320,15 +320,17 @@ class DriveBotSLAMSystem:
         return float(self.graph.optimize(max_iterations, algorithm=self.optimization_algorithm))
 
     def _incremental_update(self, max_iterations):
-        """One IncrementalSmoother update (none when max_iterations is 0); graph.statistics records it."""
+        """One IncrementalSmoother update of at most max_iterations solves (none when 0); graph.statistics gets
+        one entry per solve (χ² evaluated after the last one only)."""
         if max_iterations == 0:
             return self.chi2()
         if self._smoother is None:
             self._smoother = IncrementalSmoother(self.graph, VehicleVertex)
         t0 = time.perf_counter()
-        chi2 = float(self._smoother.update())
-        self.graph.statistics = [{"iteration": 0, "chi2": chi2, "mu": None, "rejected": 0,
-                                  "time": time.perf_counter() - t0}]
+        chi2 = float(self._smoother.update(max_solves=max_iterations))
+        solves = self._smoother.last["solves"]
+        self.graph.statistics = [{"iteration": k, "chi2": chi2 if k == solves - 1 else math.nan, "mu": None,
+                                  "rejected": 0, "time": time.perf_counter() - t0} for k in range(solves)]
         return chi2
 
     def chi2(self) -> float:

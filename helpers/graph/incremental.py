@@ -16,7 +16,9 @@ of its vertices, and δ solves the Gauss–Newton system of all edges there: H �
    relinearise everything that moved, which makes each update a Gauss–Newton iteration);
 3. the slots whose terms changed are summed again and the factor is eliminated again from the first of them (only
    the last poses, unless an old pose or a landmark was relinearised);
-4. δ by back-substitution; every vertex gets θ̄ ⊞ δ; χ² is evaluated there and returned.
+4. δ by back-substitution; with ``max_solves`` > 1, while some δ is over the threshold, those variables are
+   relinearised and δ is solved again (Gauss–Newton iterations: what a first update from dead reckoning needs);
+5. every vertex gets θ̄ ⊞ δ; χ² is evaluated there and returned.
 
 So after every update δ is exactly the batch solution of the system linearised at θ̄ (the tests compare it with
 the graph's own Hessian); what is approximate, as in iSAM2, is only that θ̄ is not re-centred on every variable at
@@ -47,9 +49,9 @@ _IGNORED, _MAP_SLOT = -2, -1   # slot codes of an edge on fixed vertices only / 
 class IncrementalSmoother:
     """Incremental Gauss–Newton smoothing of ``graph`` (a ``SparseOptimizer``) whose poses are ``chain_class``.
 
-    ``update()`` → χ² after the solve. Read-only after an update: ``delta`` (the last δ, by vertex handle order of
-    the chain and the map), ``last`` {"eliminated": poses eliminated again, "relinearised": variables,
-    "restarted": bool}, ``restarts`` (updates that started afresh).
+    ``update(max_solves=1)`` → χ² after the solve(s). Read-only after an update: ``delta`` (the last δ: chain
+    (N, p), map (D,); ``delta_of(vertex)``), ``last`` {"eliminated": poses eliminated again, "relinearised":
+    variables, "solves", "restarted": bool}, ``restarts`` (updates that started afresh).
     """
 
     def __init__(self, graph, chain_class, relinearize_threshold=0.1, relinearize_skip=10):
@@ -161,21 +163,25 @@ class IncrementalSmoother:
         return _MAP_SLOT if free_map else _IGNORED
 
     # ----------------------------------------------------------------------------------------- the update
-    def update(self):
-        """One incremental Gauss–Newton solve (module docstring); returns χ² at the new estimates."""
+    def update(self, max_solves=1):
+        """One incremental Gauss–Newton solve (module docstring), then, while solves remain of ``max_solves`` and
+        some variable's δ is over the threshold, relinearise those variables and solve again (Gauss–Newton
+        iterations, for a graph far from its linearisation points, such as a first update from dead reckoning).
+        Returns χ² at the new estimates; ``last["solves"]`` counts the solves."""
+        max_solves = integer(max_solves, "max_solves", minimum=1)
         restarted = self._changed_since_last_update()
         if restarted:
             self._reset()
         try:
-            return self._update(restarted)
+            return self._update(restarted, max_solves)
         except BaseException:
             self._reset()          # the vertices were not written; start afresh next time
             raise
 
-    def _update(self, restarted):
+    def _update(self, restarted, max_solves):
         self._add_vertices()
         dirty = self._add_edges()
-        relinearised = 0
+        relinearised = eliminated = solves = 0
         if self.delta is not None and self._updates % self.relinearize_skip == 0:
             relinearised = self._relinearise(dirty)
         self._updates += 1
@@ -185,17 +191,22 @@ class IncrementalSmoother:
             dirty.add(n_old)
         if d_old < f.D:
             dirty.add(_MAP_SLOT)
-        if dirty:
+        while dirty:
             self._sum_slots(sorted(dirty))
             chain_slots = [s for s in dirty if s >= 0]
             k0 = min(chain_slots) if chain_slots else f.N
             f.eliminate(k0)
             self.delta = f.solve()
-        eliminated = f.N - k0 if dirty else 0
+            eliminated += f.N - k0
+            solves += 1
+            dirty = set()
+            if solves < max_solves:
+                relinearised += self._relinearise(dirty)
         if self.delta is None:
             self.delta = (np.zeros((0, f.p)), np.zeros(0))
         self._write_estimates()
-        self.last = {"eliminated": eliminated, "relinearised": relinearised, "restarted": restarted}
+        self.last = {"eliminated": eliminated, "relinearised": relinearised, "solves": solves,
+                     "restarted": restarted}
         return self._chi2()
 
     def _chi2(self):
