@@ -176,8 +176,9 @@ def test_a_failed_update_leaves_the_vertices_and_restarts():
     lonely = VertexSE2(99, [9.0, 9.0, 0.0])                  # a pose with no edge: not constrained
     g.add_vertex(lonely)
     before = {v: v.estimate for v in g.vertices()}
-    with pytest.raises(NotPositiveDefiniteError, match="pose 5 of the chain is not positive definite"):
+    with pytest.raises(NotPositiveDefiniteError, match=r"VertexSE2\(id=99.* is not constrained") as err:
         sm.update()
+    assert err.value.vertex is lonely and err.value.variable == ("chain", 5)
     assert all(np.array_equal(v.estimate, x) for v, x in before.items())
     g.remove_vertex(lonely)
     sm.update()                                              # afresh, and right again
@@ -201,6 +202,17 @@ def test_non_finite_linearisation_names_the_edge_and_leaves_the_vertices():
         sm.update()
     assert bad in err.value.edges
     assert all(np.array_equal(v.estimate, x) for v, x in before.items())
+
+
+def test_a_landmark_without_edges_is_named():
+    g, rng, poses, points = start(12, ticks=4)
+    sm = IncrementalSmoother(g, VertexSE2)
+    sm.update()
+    q = VertexPointXY(60, [50.0, 50.0])
+    g.add_vertex(q)
+    with pytest.raises(NotPositiveDefiniteError, match=r"VertexPointXY\(id=60.* is not constrained") as err:
+        sm.update()
+    assert err.value.vertex is q and err.value.variable[0] == "map"
 
 
 def test_edges_between_non_consecutive_poses_are_refused_by_name():

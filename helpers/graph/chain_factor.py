@@ -33,12 +33,14 @@ __all__ = ["ChainFactor", "NotPositiveDefiniteError", "add_slot_terms_reference"
 
 
 class NotPositiveDefiniteError(GraphError):
-    """A pivot block of the elimination is not positive definite: the variable is not constrained by its edges
-    (``variable`` is the chain index of the pose, or "map")."""
+    """A pivot block of the elimination is not positive definite: the variable is not constrained by its edges.
+    ``variable`` is ("chain", index of the pose) or ("map", the failing map column); ``vertex`` is the vertex
+    object when the caller knows it (``IncrementalSmoother`` does), else None."""
 
-    def __init__(self, message, variable):
+    def __init__(self, message, variable, vertex=None):
         super().__init__(message)
         self.variable = variable
+        self.vertex = vertex
 
 
 class ChainFactor:
@@ -88,7 +90,7 @@ class ChainFactor:
         failed = eliminate_chain(self.A, self.a, self.F, self.f, self.Am, self.am, self.Rkk, self.Rk1, self.RkM,
                                  self.y, self.Rmm, self.ym, int(k0), self.N, self.p, self.D)
         if failed >= 0:
-            raise _not_positive_definite("map" if failed == self.N else int(failed))
+            raise _not_positive_definite(("chain", int(failed)) if failed < self.N else ("map", int(failed - self.N)))
 
     def eliminate_reference(self, k0):
         """``eliminate`` in plain numpy, statement by statement as in the module docstring."""
@@ -100,14 +102,14 @@ class ChainFactor:
             r = -self.a[k, :s]
             M[np.ix_(loc, loc)] += self.F[k, :p + D, :p + D]
             r[loc] += self.f[k, :p + D]
-            L = self._pivot(M[:p, :p], k)
+            L = self._pivot(M[:p, :p], ("chain", k))
             W = solve_triangular(L, M[:p, p:], lower=True)
             yk = solve_triangular(L, r[:p], lower=True)
             self.Rkk[k], self.Rk1[k], self.RkM[k, :, :D], self.y[k] = L.T, W[:, :p], W[:, p:], yk
             self.F[k + 1, :p + D, :p + D] = M[p:, p:] - W.T @ W       # over (x_{k+1}, m)
             self.f[k + 1, :p + D] = r[p:] - W.T @ yk
         Fm = self.F[N, p:p + D, p:p + D] + self.Am[:D, :D]             # x_N does not exist: keep the map part
-        L = self._pivot(Fm, "map") if D else np.zeros((0, 0))
+        L = self._pivot(Fm, ("map", None)) if D else np.zeros((0, 0))
         self.Rmm[:D, :D] = L.T
         self.ym[:D] = solve_triangular(L, self.f[N, p:p + D] - self.am[:D], lower=True)
 
@@ -135,12 +137,14 @@ class ChainFactor:
         ab[kd + rows - cols, cols] = vals
         x, info = dtbtrs(ab, rhs.reshape(-1, 1), uplo="U")
         if info != 0:
-            raise NotPositiveDefiniteError(f"the factor's pivot {info} is zero", "chain")
+            raise NotPositiveDefiniteError(f"the factor's pivot {info} is zero", ("chain", (info - 1) // p))
         return x.reshape(N, p), dm
 
 
 def _not_positive_definite(variable):
-    what = "the map" if variable == "map" else f"pose {variable} of the chain"
+    kind, index = variable
+    what = f"pose {index} of the chain" if kind == "chain" else "the map" + ("" if index is None else
+                                                                             f" (column {index})")
     return NotPositiveDefiniteError(f"the information on {what} is not positive definite after eliminating the "
                                     "variables before it: its edges do not constrain it (a gauge freedom or a "
                                     "degenerate measurement)", variable)

@@ -14,13 +14,13 @@ __all__ = ["eliminate_chain", "solve_chain"]
 
 @numba.njit(cache=True)
 def _cholesky_lower(M, n, L):
-    """L (n×n, lower) with L Lᵀ = M[:n, :n]; returns False if a pivot is not positive."""
+    """L (n×n, lower) with L Lᵀ = M[:n, :n]; returns −1, or the first column whose pivot is not positive."""
     for j in range(n):
         s = M[j, j]
         for k in range(j):
             s -= L[j, k] * L[j, k]
         if not s > 0.0:
-            return False
+            return j
         d = np.sqrt(s)
         L[j, j] = d
         for i in range(j + 1, n):
@@ -30,7 +30,7 @@ def _cholesky_lower(M, n, L):
             L[i, j] = t / d
         for i in range(j):
             L[i, j] = 0.0
-    return True
+    return -1
 
 
 @numba.njit(cache=True)
@@ -47,7 +47,7 @@ def _forward(L, n, B, col0, ncol, out):
 @numba.njit(cache=True)
 def eliminate_chain(A, a, F, f, Am, am, Rkk, Rk1, RkM, y, Rmm, ym, k0, N, p, D):
     """Rows of x_{k0} … x_{N−1} and of the map (``chain_factor`` docstring). Returns −1, or the chain index of a
-    pose whose pivot is not positive definite, or N when the map's is not."""
+    pose whose pivot is not positive definite, or N + j when the map's fails at map column j."""
     s = 2 * p + D
     M = np.empty((s, s))
     r = np.empty((s, 1))
@@ -65,7 +65,7 @@ def eliminate_chain(A, a, F, f, Am, am, Rkk, Rk1, RkM, y, Rmm, ym, k0, N, p, D):
             for j in range(p + D):
                 lj = j if j < p else j + p
                 M[li, lj] += F[k, i, j]
-        if not _cholesky_lower(M, p, L):
+        if _cholesky_lower(M, p, L) >= 0:
             return k
         _forward(L, p, M, p, s - p, W)
         _forward(L, p, r, 0, 1, yk)
@@ -95,8 +95,9 @@ def eliminate_chain(A, a, F, f, Am, am, Rkk, Rk1, RkM, y, Rmm, ym, k0, N, p, D):
         for j in range(D):
             Fm[i, j] = F[N, p + i, p + j] + Am[i, j]
     Lm = np.empty((D, D))
-    if not _cholesky_lower(Fm, D, Lm):
-        return N
+    j = _cholesky_lower(Fm, D, Lm)
+    if j >= 0:
+        return N + j
     ymv = np.empty((D, 1))
     _forward(Lm, D, rm, 0, 1, ymv)
     for i in range(D):

@@ -98,6 +98,7 @@ class IncrementalSmoother:
         self._chain_of = GrowableArray((), np.int64, -1)   # per handle: chain index, or −1
         self._map_of = GrowableArray((), np.int64, -1)     # per handle: first map column, or −1
         self._chain_pos = GrowableArray((p,), np.int64)    # per chain index: positions in the estimate array
+        self._chain_handles = []
         self._map_handles = []
         self._map_dims = []
         self._rows_done = {}                          # edge store → rows seen
@@ -127,6 +128,7 @@ class IncrementalSmoother:
                 cls, d = vs.classes[vs.class_code.buffer[h]], int(vs.dimension.buffer[h])
                 if cls is self.chain_class:
                     chain = self._chain_pos.append(vs.offset.buffer[h] + np.arange(d))
+                    self._chain_handles.append(h)
                 else:
                     mapcol = sum(self._map_dims)
                     self._map_handles.append(h)
@@ -195,7 +197,7 @@ class IncrementalSmoother:
             self._sum_slots(sorted(dirty))
             chain_slots = [s for s in dirty if s >= 0]
             k0 = min(chain_slots) if chain_slots else f.N
-            f.eliminate(k0)
+            self._eliminate(k0)
             self.delta = f.solve()
             eliminated += f.N - k0
             solves += 1
@@ -208,6 +210,23 @@ class IncrementalSmoother:
         self.last = {"eliminated": eliminated, "relinearised": relinearised, "solves": solves,
                      "restarted": restarted}
         return self._chi2()
+
+    def _eliminate(self, k0):
+        """``factor.eliminate(k0)``; a pivot that is not positive definite is reported with its vertex."""
+        try:
+            self.factor.eliminate(k0)
+        except NotPositiveDefiniteError as err:
+            kind, index = err.variable
+            if kind == "chain":
+                h = self._chain_handles[index]
+            else:
+                starts = np.cumsum([0] + self._map_dims)
+                h = self._map_handles[int(np.searchsorted(starts, index, side="right")) - 1]
+            vertex = self.graph._vertex_store.objects[h]
+            raise NotPositiveDefiniteError(f"IncrementalSmoother.update: {vertex!r} is not constrained by its edges "
+                                           "(its information is not positive definite after eliminating the poses "
+                                           "before it: a gauge freedom or a degenerate measurement)",
+                                           err.variable, vertex) from None
 
     def _chi2(self):
         """χ² = Σ eᵀΩe of every live edge at the estimates (``linearise.total_chi2``'s sum, with the positions of
