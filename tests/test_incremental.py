@@ -248,6 +248,17 @@ def test_bad_parameters_are_named(kwargs, message):
         IncrementalSmoother(**args)
 
 
+@pytest.mark.parametrize("bad", [0, -1, 1.5, "2"])
+def test_bad_max_solves_is_named_and_changes_nothing(bad):
+    g, rng, poses, points = start(13, ticks=3)
+    sm = IncrementalSmoother(g, VertexSE2)
+    before = {v: v.estimate for v in g.vertices()}
+    with pytest.raises(ValueError, match="max_solves"):
+        sm.update(max_solves=bad)
+    assert all(np.array_equal(v.estimate, x) for v, x in before.items())
+    assert sm.delta is None
+
+
 def test_accessors_name_vertices_they_do_not_know():
     g, rng, poses, points = start(10, ticks=2)
     sm = IncrementalSmoother(g, VertexSE2)
