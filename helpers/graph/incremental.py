@@ -202,7 +202,7 @@ class IncrementalSmoother:
             eliminated += f.N - k0
             solves += 1
             dirty = set()
-            if solves < max_solves:
+            if solves < max_solves and self._any_over_threshold():
                 relinearised += self._relinearise(dirty)
         if self.delta is None:
             self.delta = (np.zeros((0, f.p)), np.zeros(0))
@@ -254,6 +254,10 @@ class IncrementalSmoother:
             return total_chi2(vs, self.graph._edge_stores)    # names the edges (NonFiniteError)
         return total
 
+    def _any_over_threshold(self):
+        dc, dm = self.delta
+        return max(np.abs(dc).max(initial=0.0), np.abs(dm).max(initial=0.0)) > self.relinearize_threshold
+
     def _relinearise(self, dirty):
         """θ̄_j ← θ̄_j ⊞ δ_j for every variable whose δ is over the threshold; adds the slots of their edges to
         ``dirty``; returns how many variables moved."""
@@ -267,9 +271,12 @@ class IncrementalSmoother:
             dirty.update((moved[moved > 0] - 1).tolist())
         handles = []
         vs = self.graph._vertex_store
-        for h, d in zip(self._map_handles, self._map_dims):
-            c = self._map_of.buffer[h]
-            if c + d <= len(dm) and np.max(np.abs(dm[c:c + d])) > thr:   # (landmarks new this update have no δ)
+        starts = np.cumsum([0] + self._map_dims)
+        known = int(np.searchsorted(starts, len(dm), side="right")) - 1      # landmarks new this update: no δ
+        if known > 0:
+            over = np.flatnonzero(np.maximum.reduceat(np.abs(dm), starts[:known]) > thr)
+            for j in over.tolist():
+                h, d, c = self._map_handles[j], self._map_dims[j], int(starts[j])
                 cls = vs.classes[vs.class_code.buffer[h]]
                 pos = vs.state_indices(np.array([h]), d)
                 self._lin[pos] = cls.oplus_batch(self._lin[pos], dm[None, c:c + d])
