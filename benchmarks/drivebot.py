@@ -17,9 +17,10 @@ Benchmarks (ratio = helpers time / GTSAM time; goal ≤ 1.0 for each):
    optimization_period=1, ...)` against GTSAM iSAM2 fed the same measurement stream one tick at a time (one
    `update` per tick, new values initialised exactly as the DriveBot system does: forward prediction from the
    current estimate, landmarks from their first observation). The judged ratio is like for like, incremental
-   against incremental: ``optimization_algorithm="incremental"`` (``helpers.graph.incremental``: one Gauss–Newton
-   solve per tick on a factor kept between ticks, iSAM2's relinearisation rule with its defaults, threshold 0.1
-   and every 10th update; everything it does per tick is timed, the χ² it returns included). Printed beside it:
+   against incremental: ``optimization_algorithm="incremental"`` (``helpers.graph.incremental``: a Gauss–Newton
+   solve per tick on a factor kept between ticks, another only while some step is over the relinearisation
+   threshold; iSAM2's relinearisation rule with its defaults, threshold 0.1 and every 10th update; everything it
+   does per tick is timed, the χ² it returns included). Printed beside it:
    a batch re-solve per tick with GTSAM's LM schedule (``"lm-gtsam"``) and with the coursework LM, each including
    the tick's structure update (``ensure_structure``).
 3. **All pose marginals** of the optimised q3_a graph: `SparseOptimizer.compute_marginals` against
@@ -417,6 +418,7 @@ def bench_isam2(seed=0):
             "helpers_iterations": float(np.nanmean(np.asarray(res.optimization_iterations, dtype=float))),
             "incremental_total": inc_total, "incremental_final_chi2": float(np.asarray(inc.chi2_history)[-1]),
             "incremental_restarts": inc.system._smoother.restarts,
+            "incremental_solves": float(np.mean(inc.optimization_iterations)),
             "helpers_final_chi2": float(np.asarray(res.chi2_history)[-1]),
             "gtsam_final_chi2": gtsam_chi2(graph, est)}
 
@@ -464,8 +466,8 @@ def main(argv=None):
     print(f"    helpers Σ optimize(), algorithm 'lm-gtsam': {it['helpers_sched_total']:.3f} s  final χ² "
           f"{it['helpers_sched_final_chi2']:.3f}  ({it['helpers_sched_iterations']:.1f} iterations per tick)")
     print(f"    helpers Σ optimize(), algorithm 'incremental': {it['incremental_total']:.3f} s  final χ² "
-          f"{it['incremental_final_chi2']:.3f}  (one Gauss–Newton solve per tick on the kept factor, iSAM2's "
-          f"relinearisation rule; {it['incremental_restarts']} restarts)")
+          f"{it['incremental_final_chi2']:.3f}  ({it['incremental_solves']:.2f} Gauss–Newton solves per tick on the "
+          f"kept factor, iSAM2's relinearisation rule; {it['incremental_restarts']} restarts)")
     print(f"    GTSAM iSAM2 Σ update: {it['gtsam_total']:.3f} s  final χ² {it['gtsam_final_chi2']:.3f}")
     r2 = it["incremental_total"] / it["gtsam_total"]
     r2_batch = it["helpers_sched_total"] / it["gtsam_total"]
