@@ -72,8 +72,9 @@ class DriveBotSLAMSystem:
     pre_optimization_hook : callable(system) run before every optimisation (e.g. a Q3b pruning heuristic).
     optimization_algorithm : "lm" (the coursework's Levenberg–Marquardt, default), "gn", "lm-gtsam"
         (GTSAM's LM schedule and relative stopping rule; for like-for-like comparisons with GTSAM), or
-        "incremental" (one Gauss–Newton solve per optimisation with the factor kept between them and iSAM2's
-        relinearisation rule: ``helpers.graph.incremental``; for optimising at every step).
+        "incremental" (a Gauss–Newton solve per optimisation on a factor kept between them, more only while a
+        step is over iSAM2's relinearisation threshold: ``helpers.graph.incremental``; for optimising at every
+        step).
     """
 
     def __init__(self, config: SimulatorConfiguration | None = None, optimization_period=None,
