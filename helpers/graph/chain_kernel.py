@@ -143,7 +143,9 @@ def add_slot_terms(A, a, Am, am, slots, ew, J, starts, dims, p):
         off[v + 1] = off[v] + dims[v]
     for e in range(E):
         k = slots[e]
-        shift = 0 if k >= 0 else 2 * p       # the map slot has no chain columns
+        Ht = A[k] if k >= 0 else Am          # the map slot: Am, am, which have no chain columns
+        gt = a[k] if k >= 0 else am
+        shift = 0 if k >= 0 else 2 * p
         for u in range(nv):
             su = starts[e, u]
             if su < 0:
@@ -153,10 +155,7 @@ def add_slot_terms(A, a, Am, am, slots, ew, J, starts, dims, p):
                 g = 0.0
                 for q in range(m):
                     g += J[e, q, ci] * ew[e, q]
-                if k >= 0:
-                    a[k, su + i] += g
-                else:
-                    am[su + i - shift] += g
+                gt[su + i - shift] += g
                 for v in range(nv):
                     sv = starts[e, v]
                     if sv < 0:
@@ -166,7 +165,4 @@ def add_slot_terms(A, a, Am, am, slots, ew, J, starts, dims, p):
                         h = 0.0
                         for q in range(m):
                             h += J[e, q, ci] * J[e, q, cj]
-                        if k >= 0:
-                            A[k, su + i, sv + j] += h
-                        else:
-                            Am[su + i - shift, sv + j - shift] += h
+                        Ht[su + i - shift, sv + j - shift] += h

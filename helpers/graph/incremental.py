@@ -220,7 +220,7 @@ class IncrementalSmoother:
             if kind == "chain":
                 h = self._chain_handles[index]
             else:
-                starts = np.cumsum([0] + self._map_dims)
+                starts = self._map_starts()
                 h = self._map_handles[int(np.searchsorted(starts, index, side="right")) - 1]
             vertex = self.graph._vertex_store.objects[h]
             raise NotPositiveDefiniteError(f"IncrementalSmoother.update: {vertex!r} is not constrained by its edges "
@@ -254,6 +254,10 @@ class IncrementalSmoother:
             return total_chi2(vs, self.graph._edge_stores)    # names the edges (NonFiniteError)
         return total
 
+    def _map_starts(self):
+        """First map column of every map vertex, and the map's dimension last."""
+        return np.cumsum([0] + self._map_dims)
+
     def _any_over_threshold(self):
         dc, dm = self.delta
         return max(np.abs(dc).max(initial=0.0), np.abs(dm).max(initial=0.0)) > self.relinearize_threshold
@@ -271,7 +275,7 @@ class IncrementalSmoother:
             dirty.update((moved[moved > 0] - 1).tolist())
         handles = []
         vs = self.graph._vertex_store
-        starts = np.cumsum([0] + self._map_dims)
+        starts = self._map_starts()
         known = int(np.searchsorted(starts, len(dm), side="right")) - 1      # landmarks new this update: no δ
         if known > 0:
             over = np.flatnonzero(np.maximum.reduceat(np.abs(dm), starts[:known]) > thr)
