@@ -205,6 +205,26 @@ def test_an_unlisted_test_stopped_by_a_stub_grades_with_that_exercise(capsys):
     assert grade.stub_named("AssertionError", exes) is None
 
 
+def test_exercises_only_deselects_the_other_tests():
+    class Item:
+        def __init__(self, nodeid):
+            self.nodeid = nodeid
+
+    class Hook:
+        def pytest_deselected(self, items):
+            self.dropped = [i.nodeid for i in items]
+
+    class Config:
+        hook = Hook()
+
+    exes = [{"name": "a", "tests": ["t::x"], "needs": []}, {"name": "b", "tests": ["t::y"], "needs": []}]
+    for exercises_only, kept in ((False, ["t::x", "t::y[1]", "t::z"]), (True, ["t::x", "t::y[1]"])):
+        items = [Item(n) for n in ("t::x", "t::y[1]", "t::z")]
+        grade.Collector(exes, exercises_only=exercises_only).pytest_collection_modifyitems(None, Config, items)
+        assert [i.nodeid for i in items] == kept
+    assert Config.hook.dropped == ["t::z"]
+
+
 def test_notebook_handler_prints_one_short_message(capsys):
     class Shell:
         def set_custom_exc(self, exc_tuple, handler):

@@ -1,6 +1,6 @@
 """Grade the exercises: run the unit tests once and report per exercise (``make grade``, ``make grade EX=name``).
 
-    python tools/grade.py [NAME] [--student-ok] [--status FILE] [--verbose]
+    python tools/grade.py [NAME] [--student-ok] [--exercises-only] [--status FILE] [--verbose]
 
 Runs pytest in-process over ``tests/`` (of the tree this file is in), maps every test to its exercise through
 ``tools/exercises.toml`` (node ids or node-id prefixes) and prints one line per exercise,
@@ -16,7 +16,8 @@ EXERCISES.md) the registry's answer-key-only tests are not run.
 Exit status: 0 when every graded exercise and every other test passed, else 1; with ``--student-ok`` (the
 student edition's ``make test``) 0 whenever the other tests passed, so unfinished exercises do not fail it.
 ``--status FILE`` writes the names of the passed exercises as JSON (the student ``make test`` picks notebooks
-with it); ``--verbose`` shows pytest's own output.
+with it); ``--exercises-only`` runs only the tests the registry lists (the verdicts of a tree whose tests all
+pass, such as the answer key's, without running the other tests again); ``--verbose`` shows pytest's own output.
 """
 from __future__ import annotations
 
@@ -57,8 +58,9 @@ def exercise_of(nodeid: str, exercises) -> str | None:
 class Collector:
     """pytest plugin: deselects what is not graded and records each test's outcome and first failure."""
 
-    def __init__(self, exercises, only=None, skip=()):
+    def __init__(self, exercises, only=None, skip=(), exercises_only=False):
         self.exercises, self.only, self.skip = exercises, only, tuple(skip)
+        self.exercises_only = exercises_only
         self.outcome, self.failure, self.errors = {}, {}, []
 
     def pytest_collection_modifyitems(self, session, config, items):
@@ -66,7 +68,8 @@ class Collector:
         for item in items:
             ex = exercise_of(item.nodeid, self.exercises)
             skipped = any(matches(item.nodeid, p) for p in self.skip)
-            (drop if skipped or (self.only and ex not in (None, self.only)) else keep).append(item)
+            ungraded = (self.only and ex not in (None, self.only)) or (self.exercises_only and ex is None)
+            (drop if skipped or ungraded else keep).append(item)
         if drop:
             config.hook.pytest_deselected(items=drop)
         items[:] = keep
@@ -174,7 +177,7 @@ def main(argv=None) -> int:
         print("unknown exercise %r; the exercises are: %s" % (only, ", ".join(ex["name"] for ex in exercises)))
         return 2
     skip = registry.get("edition", {}).get("answer_key_only_tests", []) if is_student_edition() else []
-    collector = Collector(exercises, only, skip)
+    collector = Collector(exercises, only, skip, exercises_only="--exercises-only" in argv)
     code = run_tests(collector, verbose=verbose)
     _, ex_failed, _, other_failed, passed = report(collector, exercises, only)
     if status_file:

@@ -2,13 +2,14 @@
 
     python tools/student_check.py [--keep DIR]
 
-1. builds the student edition into a temporary directory (``tools/student.py``, with its self-check);
-2. grades it with the answer key's interpreter and PYTHONPATH at the student tree (no second environment):
-   expects ``exercises: 0 passed, N failed`` and ``other tests: K passed, 0 failed``;
-3. grades the answer key (in a second process, at the same time as step 2): expects ``exercises: N passed, 0
-   failed``;
-4. copies one answer-key solution (``SOLUTION``, an exercise whose tests need no other exercise) into the student
-   tree and grades that exercise: expects exactly it to pass (and the other tests still to pass).
+1. builds the student edition into a temporary directory (``tools/student.py``, with its self-check), and a copy
+   of it with one answer-key solution (``SOLUTION``, an exercise whose tests need no other exercise) put in;
+2. grades the student edition with the answer key's interpreter and PYTHONPATH at the student tree (no second
+   environment): expects ``exercises: 0 passed, N failed`` and ``other tests: K passed, 0 failed``;
+3. grades the copy with the solution: expects exactly that exercise to pass (and the other tests still to pass);
+4. grades the answer key's exercises (``--exercises-only``: ``make test`` has just run every test of the answer
+   key): expects ``exercises: N passed, 0 failed``.
+The three gradings run at the same time, in separate processes on independent trees.
 Prints one line per step and ``student edition check: N passed, M failed``; exit status 1 on any failure.
 """
 from __future__ import annotations
@@ -64,30 +65,33 @@ def main(argv=None) -> int:
     n = len(student.load_registry()["exercise"])
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="student-edition-"))
     tree = keep or tmp / "student"
-    answer_key = None
+    graders = []
     try:
         student.build(tree, quiet=True)
         check("the student edition builds and passes its self-check (%d exercises)" % n, True)
-        answer_key = start_grading(ROOT)          # graded alongside the student edition (independent trees)
-        out, counts = grade(tree)
+        solved = tmp / "student-with-solution"
+        shutil.copytree(tree, solved, ignore=shutil.ignore_patterns("__pycache__", ".pytest_cache"))
+        student.copy_solution(solved, SOLUTION)
+        graders = [start_grading(tree), start_grading(solved), start_grading(ROOT, "--exercises-only")]
+        out, counts = finish_grading(graders[0])
         check("student edition: exercises: %s passed, %s failed (expected 0, %d); other tests: %s passed, %s failed"
               % (counts.get("exercises", ("?", "?")) + (n,) + counts.get("other tests", ("?", "?"))),
               counts.get("exercises") == (0, n) and counts.get("other tests", (0, 1))[1] == 0
               and counts["other tests"][0] > 0, out)
-        out, counts = finish_grading(answer_key)
-        check("answer key: exercises: %d passed, 0 failed" % n, counts.get("exercises") == (n, 0), out)
-        student.copy_solution(tree, SOLUTION)
-        out, counts = grade(tree)
+        out, counts = finish_grading(graders[1])
         passed = re.findall(r"^(\w+)\s+passed$", out, re.M)
         check("student edition with the answer key's %s: exactly that exercise passes" % SOLUTION,
               passed == [SOLUTION] and counts.get("exercises") == (1, n - 1)
               and counts.get("other tests", (0, 1))[1] == 0, out)
+        out, counts = finish_grading(graders[2])
+        check("answer key: exercises: %d passed, 0 failed" % n, counts.get("exercises") == (n, 0), out)
     except student.BuildError as err:
         check("the student edition builds: %s" % err, False)
     finally:
-        if answer_key is not None and answer_key.poll() is None:     # interrupted: no grader left behind
-            answer_key.kill()
-            answer_key.communicate()
+        for process in graders:                                      # interrupted: no grader left behind
+            if process.poll() is None:
+                process.kill()
+                process.communicate()
         if keep is None:
             shutil.rmtree(tmp, ignore_errors=True)
     print("student edition check took %.0f s" % (time.perf_counter() - start))
