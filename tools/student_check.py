@@ -7,8 +7,8 @@
 2. grades the student edition with the answer key's interpreter and PYTHONPATH at the student tree (no second
    environment): expects ``exercises: 0 passed, N failed`` and ``other tests: K passed, 0 failed``;
 3. grades the copy with the solution: expects exactly that exercise to pass (and the other tests still to pass);
-4. grades the answer key's exercises (``--exercises-only``: ``make test`` has just run every test of the answer
-   key): expects ``exercises: N passed, 0 failed``.
+4. grades the answer key's exercises (``--exercises-only``: its other tests are ``make test``'s unit tests, which
+   ``CI=true make test`` runs just before): expects ``exercises: N passed, 0 failed``.
 The three gradings run at the same time, in separate processes on independent trees.
 Prints one line per step and ``student edition check: N passed, M failed``; exit status 1 on any failure.
 """
@@ -31,23 +31,23 @@ SOLUTION = "lab8_2a_individual_compatibility"
 SUMMARY = re.compile(r"^(exercises|other tests): (\d+) passed, (\d+) failed$", re.M)
 
 
-def start_grading(tree: pathlib.Path, *args) -> subprocess.Popen:
-    """Start tree's grader with this interpreter (a subprocess; ``finish_grading`` collects it)."""
-    env = dict(os.environ, PYTHONPATH=str(tree))
-    return subprocess.Popen([sys.executable, str(tree / "tools" / "grade.py")] + list(args), cwd=str(tree),
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def start_grading(tree: pathlib.Path, log: pathlib.Path, *args):
+    """Start tree's grader with this interpreter, its output going to the file ``log`` (a file, not a pipe:
+    graders run side by side and none may block on a full pipe). ``finish_grading`` collects it."""
+    env = dict(os.environ, PYTHONPATH=str(tree), PYTHONIOENCODING="utf-8")     # the log is read as UTF-8
+    with open(log, "w", encoding="utf-8") as out:
+        process = subprocess.Popen([sys.executable, str(tree / "tools" / "grade.py")] + list(args), cwd=str(tree),
+                                   env=env, stdout=out, stderr=subprocess.STDOUT)
+    process.log = log
+    return process
 
 
 def finish_grading(process: subprocess.Popen):
-    """Wait for a grader; returns (stdout, {"exercises": (p, f), "other tests": (p, f)})."""
-    stdout, _ = process.communicate()
-    counts = {m.group(1): (int(m.group(2)), int(m.group(3))) for m in SUMMARY.finditer(stdout)}
-    return stdout, counts
-
-
-def grade(tree: pathlib.Path, *args):
-    """Run tree's grader with this interpreter; returns (stdout, {"exercises": (p, f), "other tests": (p, f)})."""
-    return finish_grading(start_grading(tree, *args))
+    """Wait for a grader; returns (its output, {"exercises": (p, f), "other tests": (p, f)})."""
+    process.wait()
+    output = process.log.read_text(encoding="utf-8", errors="replace")
+    counts = {m.group(1): (int(m.group(2)), int(m.group(3))) for m in SUMMARY.finditer(output)}
+    return output, counts
 
 
 def main(argv=None) -> int:
@@ -72,7 +72,8 @@ def main(argv=None) -> int:
         solved = tmp / "student-with-solution"
         shutil.copytree(tree, solved, ignore=shutil.ignore_patterns("__pycache__", ".pytest_cache"))
         student.copy_solution(solved, SOLUTION)
-        graders = [start_grading(tree), start_grading(solved), start_grading(ROOT, "--exercises-only")]
+        graders = [start_grading(tree, tmp / "student.log"), start_grading(solved, tmp / "solved.log"),
+                   start_grading(ROOT, tmp / "answer-key.log", "--exercises-only")]
         out, counts = finish_grading(graders[0])
         check("student edition: exercises: %s passed, %s failed (expected 0, %d); other tests: %s passed, %s failed"
               % (counts.get("exercises", ("?", "?")) + (n,) + counts.get("other tests", ("?", "?"))),
@@ -91,7 +92,7 @@ def main(argv=None) -> int:
         for process in graders:                                      # interrupted: no grader left behind
             if process.poll() is None:
                 process.kill()
-                process.communicate()
+                process.wait()
         if keep is None:
             shutil.rmtree(tmp, ignore_errors=True)
     print("student edition check took %.0f s" % (time.perf_counter() - start))
