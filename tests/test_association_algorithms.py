@@ -341,3 +341,33 @@ def test_a_prepared_problem_rejects_bad_input_by_name():
     for bad in ([3], [0, 0], [0.5], [[0]]):
         with pytest.raises(ValueError, match="landmarks must be distinct landmark indices"):
             problem.subset(np.asarray(bad))
+
+
+def test_true_hypothesis_on_hand_made_scenes():
+    from helpers.association.evaluation import true_hypothesis
+
+    c = confidence_level(3.0)
+    # two independent landmarks observed exactly at their predictions: D² = 0, jointly compatible
+    mu = np.array([[0.0, 0.0], [5.0, 0.0]])
+    ok = true_hypothesis(Gaussian.from_cov(mu.ravel(), np.eye(4)), mu.T.copy(), np.array([0, 1]))
+    assert ok == {"n_true": 2, "n_individual": 2, "d2": 0.0, "gate": pytest.approx(float(chi2inv(c, 4))),
+                  "dof": 4, "jointly_compatible": True}
+    # a shared error (cross-covariance 1, own variance 1.01): displaced 2 m in opposite directions, each
+    # pairing passes alone (d² = 4/1.01 < χ²_2 = 11.8) but the pair needs a 4 m difference of variance 0.02
+    P = np.kron(np.array([[1.01, 1.0], [1.0, 1.01]]), np.eye(2))
+    Y = np.array([[2.0, 3.0], [0.0, 0.0]])
+    bad = true_hypothesis(Gaussian.from_cov(mu.ravel(), P), Y, np.array([0, 1]))
+    assert bad["n_individual"] == 2 and not bad["jointly_compatible"]
+    assert bad["d2"] == pytest.approx(16.08 / 0.0201)      # fᵀP⁻¹f on the x axis, f = (2, −2): 800
+    # a true pairing that fails its individual gate is left out of H
+    far = true_hypothesis(Gaussian.from_cov(mu.ravel(), np.eye(4)), np.array([[0.0, 25.0], [0.0, 0.0]]),
+                          np.array([0, 1]))
+    assert (far["n_true"], far["n_individual"], far["dof"], far["d2"]) == (2, 1, 2, 0.0)
+    assert far["jointly_compatible"]
+    # no true pairing at all (clutter only): nothing to test
+    none = true_hypothesis(Gaussian.from_cov(mu.ravel(), np.eye(4)), Y, np.array([-1, -1]))
+    assert (none["n_individual"], none["d2"], none["gate"], none["jointly_compatible"]) == (0, 0.0, 0.0, True)
+    with pytest.raises(ValueError, match="truth"):
+        true_hypothesis(Gaussian.from_cov(mu.ravel(), np.eye(4)), Y, np.array([0]))
+    with pytest.raises(ValueError, match="truth"):
+        true_hypothesis(Gaussian.from_cov(mu.ravel(), np.eye(4)), Y, np.array([0, 0]))

@@ -14,6 +14,9 @@ Over many trials the counts are summed first (micro-average), so a trial with mo
 more. Scoring is vectorised over all trials (the associations are concatenated with offsets); generating
 the trials and running the algorithms is one call per trial.
 
+:func:`true_hypothesis` judges a scene's true pairings as the gates judge any hypothesis: when the truth
+itself fails the joint gate, no algorithm that respects the gate can return it.
+
 Uncertainty of a rate: :func:`wilson_interval` gives the Wilson score interval of a binomial proportion
 (Wilson 1927), treating each counted pairing / observation as an independent Bernoulli trial — an
 approximation, since the pairings of one scene share its pose error. :func:`sweep` runs one factor of a
@@ -29,13 +32,13 @@ from typing import Callable, Mapping
 import numpy as np
 from scipy.stats import norm
 
-from .common import Association
+from .common import Association, check_hypothesis, joint_sq_mahalanobis, prepare
 from .scenarios import range_bearing_scenario
 from ..timing import best_of
 from ..validation import float_array
 
 __all__ = ["score", "score_many", "run_trials", "TrialResults", "RATES", "wilson_interval", "sweep",
-           "sweep_table", "check_results"]
+           "sweep_table", "check_results", "true_hypothesis"]
 
 #: numerator and denominator counts of each rate
 RATES = {"precision": ("tp", "n_pred"), "recall": ("tp", "n_true"), "accuracy": ("correct", "m")}
@@ -310,3 +313,26 @@ def sweep_table(title: str, results: Mapping, unit: str = "", keys=("precision",
         s = res.summary()
         lines.append(f"{str(v) + unit:>10s} " + " ".join(" ".join(f"{s[a][k]:5.3f}" for k in keys) for a in names))
     return "\n".join(lines)
+
+
+def true_hypothesis(density, Y, truth, n_sigma: float = 3.0) -> dict:
+    """The scene's true pairings, judged by the individual and the joint gate.
+
+    ``truth``: one entry per landmark, its observation column or −1. The true pairings (k, truth_k) that pass
+    the individual gate d²_k,truth_k ≤ χ²_d(c) form the hypothesis H (a of them); its joint distance D²_H is
+    computed from scratch and compared with the joint gate χ²_{d·a}(c), c = 2Φ(n_σ) − 1.
+
+    Returns ``n_true``, ``n_individual`` (= a), ``d2`` (D²_H; 0 when a = 0), ``gate`` (χ²_{d·a}(c); 0 when
+    a = 0), ``dof`` (d·a) and ``jointly_compatible`` (D²_H ≤ gate).
+    """
+    problem = prepare(density, Y, n_sigma)
+    truth = check_hypothesis(truth, problem.n, problem.m, "truth")
+    k = np.flatnonzero(truth >= 0)
+    individual = problem.ic_d2[k, truth[k]] <= problem.ic_threshold
+    idx = np.full(problem.n, -1, dtype=np.intp)
+    idx[k[individual]] = truth[k[individual]]
+    a = int(np.count_nonzero(individual))
+    d2 = joint_sq_mahalanobis(problem, idx) if a else 0.0
+    gate = float(problem.jc_threshold(a)) if a else 0.0
+    return {"n_true": int(k.size), "n_individual": a, "d2": float(d2), "gate": gate, "dof": problem.d * a,
+            "jointly_compatible": bool(d2 <= gate)}
