@@ -371,3 +371,11 @@ def test_true_hypothesis_on_hand_made_scenes():
         true_hypothesis(Gaussian.from_cov(mu.ravel(), np.eye(4)), Y, np.array([0]))
     with pytest.raises(ValueError, match="truth"):
         true_hypothesis(Gaussian.from_cov(mu.ravel(), np.eye(4)), Y, np.array([0, 0]))
+    with pytest.raises(ValueError, match="truth must contain integers"):
+        true_hypothesis(Gaussian.from_cov(mu.ravel(), np.eye(4)), Y, np.array([0.5, 1.0]))
+    with pytest.raises(ValueError, match="truth entries"):
+        true_hypothesis(Gaussian.from_cov(mu.ravel(), np.eye(4)), Y, np.array([0, 5]))
+    with pytest.raises(ValueError, match="n_sigma"):
+        true_hypothesis(Gaussian.from_cov(mu.ravel(), np.eye(4)), Y, np.array([0, 1]), n_sigma=-1.0)
+    with pytest.raises(ValueError, match="observation dimension"):
+        true_hypothesis(Gaussian.from_cov(mu.ravel(), np.eye(4)), np.zeros((3, 2)), np.array([0, 1]))
