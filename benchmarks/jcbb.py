@@ -47,6 +47,13 @@ def main():
     args = ap.parse_args()
     print(f"JCBB benchmark  {datetime.date.today().isoformat()}  trials={args.trials}  "
           "150 landmarks / 30 m square, m = 30 + 2 clutter, pose σ (0.5 m, 0.5 m, 8°)")
+    rows = compare_trials(args)
+    summarise(rows, args)
+    tail(args)
+
+
+def compare_trials(args):
+    """Fast JCBB (best of 3), the capped fast run and the naive search on the first trials; one line each."""
     sc0 = range_bearing_scenario(seed=(2024, 0))
     jcbb(sc0.density, sc0.Y)                               # compile (numba cache) before timing
     rows = []
@@ -74,6 +81,11 @@ def main():
               f"{'same' if same else ('DIFF' if finished else '-   ')} | budget {t_budget * 1e3:6.2f} ms "
               f"{'cut' if b.budget_exhausted else '   '} {'=' if rows[-1][9] else '≠'} | "
               f"pairings {a.n_pairings} correct {correct}", flush=True)
+    return rows
+
+
+def summarise(rows, args):
+    """Medians, worst cases and agreement over the compared trials."""
     r = np.array([x[:5] + (x[7],) for x in rows], dtype=float)
     finished = np.array([x[5] for x in rows])
     same = np.array([x[6] for x in rows])
@@ -92,7 +104,11 @@ def main():
     eq = np.array([x[9] for x in rows])
     print(f"fast JCBB, max_nodes={args.budget}: worst {t_budget.max() * 1e3:.1f} ms; cut on {int(cut.sum())} "
           f"trials, same hypothesis as the full search on {int(eq.sum())}/{len(rows)}")
-    # the tail: fast JCBB alone (unlimited and with the budget) on more seeded trials
+
+
+def tail(args):
+    """The tail: fast JCBB alone (unlimited and with the budget) on more seeded trials, with each scene's
+    true hypothesis judged outside the timed calls."""
     tf, tb, nn, cuts, same_b, truth_jc, all_ic = [], [], [], 0, 0, [], 0
     for t in range(args.tail_trials):
         sc = range_bearing_scenario(seed=(2024, t))

@@ -17,6 +17,10 @@ import nbformat
 from nbclient import NotebookClient
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+#: The kernel's own log at ERROR: ipykernel 7 otherwise warns on every start that its local TCP sockets are not
+#: encrypted (true of every local Jupyter kernel, and nothing a student can act on). Cell output, Python
+#: warnings raised in cells and kernel errors are not affected.
+KERNEL_ARGUMENTS = ["--IPKernelApp.log_level=ERROR"]
 
 
 def _shown(path: pathlib.Path) -> str:
@@ -45,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"[{k}/{len(paths)}] {_shown(path)} ...", end=" ", flush=True)
         start = time.perf_counter()
         nb = nbformat.read(path, as_version=4)
-        client = NotebookClient(nb, timeout=args.timeout, kernel_name="python3",
+        client = NotebookClient(nb, timeout=args.timeout, kernel_name="python3", extra_arguments=KERNEL_ARGUMENTS,
                                 resources={"metadata": {"path": str(path.parent)}})
         client.execute()
         target = path if args.inplace else ((ROOT / args.output_dir).resolve() / path.name)
