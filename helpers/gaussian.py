@@ -30,7 +30,7 @@ import numbers
 import numpy as np
 from scipy import linalg, special
 
-from .validation import check_symmetric, finite_vector, float_array, index_list
+from .validation import broadcastable, check_symmetric, finite_vector, float_array, index_list
 
 __all__ = ["Gaussian", "chi2inv", "chi2_interval", "normcdf", "confidence_level", "square_r_factor"]
 
@@ -61,6 +61,7 @@ def _chi2inv_array(p, nu):
         raise ValueError(f"p must lie in [0, 1), got {p!r}")
     if not np.all(np.isfinite(nu_arr)) or np.any(nu_arr <= 0):
         raise ValueError(f"nu must be positive and finite, got {nu!r}")
+    broadcastable(p=p_arr, nu=nu_arr)
     out = 2.0 * special.gammaincinv(nu_arr / 2.0, p_arr)
     return float(out) if out.ndim == 0 else out
 
@@ -239,9 +240,10 @@ class Gaussian:
         return Gaussian(self._mu[idx], square_r_factor(self._S[:, idx]))
 
     def conditional(self, idx_a, idx_b, x_b) -> "Gaussian":
-        """p(x_A | x_B = x_b) by QR of [S[:, B], S[:, A]] (Lab 5 eqs 23–26). A and B must be disjoint."""
+        """p(x_A | x_B = x_b) by QR of [S[:, B], S[:, A]] (Lab 5 eqs 23–26). A and B must be disjoint, and B
+        must not repeat an index (conditioning on x_i twice is ill-posed)."""
         idx_a = index_list(idx_a, self.size, "idx_a", integral_floats=True)
-        idx_b = index_list(idx_b, self.size, "idx_b", integral_floats=True)
+        idx_b = index_list(idx_b, self.size, "idx_b", integral_floats=True, distinct=True)
         if np.intersect1d(idx_a, idx_b).size:
             raise ValueError("idx_a and idx_b must be disjoint")
         x_b = finite_vector(x_b, "x_b", idx_b.size)

@@ -83,10 +83,7 @@ class StateSLAM:
         return self._density.mean[12:].reshape(-1, 3).T
 
     def _landmark_selection(self, idx_landmarks, name="idx_landmarks") -> np.ndarray:
-        idx = index_list(idx_landmarks, self.number_landmarks, name, kind="landmark ")
-        if np.unique(idx).size != idx.size:
-            raise ValueError(f"{name} must not repeat a landmark, got {idx.tolist()}")
-        return idx
+        return index_list(idx_landmarks, self.number_landmarks, name, kind="landmark ", distinct=True)
 
     def _check_x(self, x):
         if x is None:

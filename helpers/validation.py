@@ -70,11 +70,13 @@ def int_array(values, name: str) -> np.ndarray:
     return arr.astype(np.int64)
 
 
-def index_list(values, n: int, name: str, kind: str = "", integral_floats: bool = False) -> np.ndarray:
+def index_list(values, n: int, name: str, kind: str = "", integral_floats: bool = False,
+               distinct: bool = False) -> np.ndarray:
     """A non-empty selection of indices in [0, n) as a 1-D intp array (a scalar is a selection of one).
 
     ``kind`` names what is indexed in the messages (e.g. ``"landmark "``); with ``integral_floats`` floats that
-    are whole numbers are accepted. Anything else raises ValueError naming ``name``."""
+    are whole numbers are accepted; with ``distinct`` an index may appear only once. Anything else raises
+    ValueError naming ``name``."""
     arr = np.asarray(values)
     if arr.ndim == 0:
         arr = arr.reshape(1)
@@ -88,13 +90,15 @@ def index_list(values, n: int, name: str, kind: str = "", integral_floats: bool 
             raise ValueError(f"{name} must contain integer {kind}indices, got dtype {arr.dtype}")
     if np.any(arr < 0) or np.any(arr >= n):
         raise ValueError(f"{name} has {'a' if kind else 'an'} {kind}index out of range [0, {n}): {arr.tolist()}")
+    if distinct and np.unique(arr).size != arr.size:
+        raise ValueError(f"{name} must not repeat {'a' if kind else 'an'} {kind}index, got {arr.tolist()}")
     return arr.astype(np.intp)
 
 
 def finite_vector(values, name: str, size: int | None = None) -> np.ndarray:
     """``values`` as a finite 1-D float array (of length ``size`` if given); anything else raises ValueError
     naming ``name``."""
-    x = np.asarray(values, dtype=float)
+    x = float_array(values, name)
     if x.ndim != 1:
         raise ValueError(f"{name} must be a 1-D array, got shape {x.shape}")
     if size is not None and x.shape[0] != size:
@@ -108,7 +112,7 @@ def feature_columns(Y, name: str = "Y", allow_empty: bool = True) -> np.ndarray:
     """Measured image features as a finite 2 × m float array, one feature (x, y pixels) per column.
 
     m = 0 is accepted unless ``allow_empty`` is False. Anything else raises ValueError naming ``name``."""
-    Y = np.asarray(Y, dtype=float)
+    Y = float_array(Y, name)
     if Y.ndim != 2 or Y.shape[0] != 2 or (Y.shape[1] == 0 and not allow_empty):
         least = 0 if allow_empty else 1
         raise ValueError(f"{name} must have shape (2, m) with m >= {least} features as columns, got {Y.shape}")
@@ -134,6 +138,16 @@ def float_array(values, name: str) -> np.ndarray:
         text = text if len(text) <= 60 else text[:57] + "..."
         raise ValueError(f"{name} must be an array of real numbers, got {type(values).__name__} {text}")
     return raw.astype(float, copy=False)
+
+
+def broadcastable(**arrays) -> tuple:
+    """The common shape of the named arrays under numpy broadcasting; ValueError naming them when there is none
+    (``broadcastable(p=p_arr, nu=nu_arr)``)."""
+    try:
+        return np.broadcast_shapes(*(a.shape for a in arrays.values()))
+    except ValueError:
+        shapes = ", ".join(f"{name} {a.shape}" for name, a in arrays.items())
+        raise ValueError(f"{' and '.join(arrays)} must broadcast to a common shape, got {shapes}") from None
 
 
 def check_symmetric(P, name: str) -> None:

@@ -235,6 +235,11 @@ def problem_from_cov(mu, P, Y, n_sigma: float = 3.0) -> AssociationProblem:
 
     ValueError naming the argument: mu not a finite 2-D array, Y not finite (d, m) with mu's d, P not finite
     of shape (d·n, d·n) or not symmetric, a diagonal block of P not positive definite, n_sigma not positive.
+    P must be positive definite as a whole, but only its diagonal blocks are checked here (a full check would
+    cost a factorisation of P per scan). Where a joint block is factored from scratch (``jcbb_reference``, and
+    the joint D² that the other algorithms report for their hypothesis), a block without a Cholesky factor
+    raises ValueError; the compiled ``jcbb`` treats a landmark whose conditional covariance is not positive
+    definite as incompatible.
     """
     Y = float_array(Y, "Y")
     if Y.ndim != 2 or Y.shape[0] == 0:
@@ -363,7 +368,11 @@ def _joint_d2(problem, idx) -> float:
     d = problem.d
     rows = (d * k[:, None] + np.arange(d)).ravel()
     f = (problem.Y[:, idx[k]].T - problem.mu[k]).ravel()
-    L = np.linalg.cholesky(problem.P[np.ix_(rows, rows)])
+    try:
+        L = np.linalg.cholesky(problem.P[np.ix_(rows, rows)])
+    except np.linalg.LinAlgError:
+        raise ValueError(f"P is not positive definite: the joint covariance of landmarks {k.tolist()} has no "
+                         "Cholesky factor (problem_from_cov checks only each landmark's own block)") from None
     w = np.linalg.solve(L, f)
     return float(w @ w)
 

@@ -35,7 +35,7 @@ from scipy.stats import norm
 from .common import Association, check_hypothesis, joint_sq_mahalanobis, prepare
 from .scenarios import range_bearing_scenario
 from ..timing import best_of
-from ..validation import float_array
+from ..validation import broadcastable, float_array
 
 __all__ = ["score", "score_many", "run_trials", "TrialResults", "RATES", "wilson_interval", "sweep",
            "sweep_table", "check_results", "true_hypothesis"]
@@ -164,6 +164,7 @@ def wilson_interval(successes, trials, confidence: float = 0.95):
         raise ValueError(f"successes must be non-negative integers, got {successes!r}")
     if np.any(~np.isfinite(n)) or np.any(n < 0) or np.any(n != np.round(n)):
         raise ValueError(f"trials must be non-negative integers, got {trials!r}")
+    broadcastable(successes=k, trials=n)
     if np.any(k > n):
         raise ValueError("successes must not exceed trials")
     if isinstance(confidence, bool) or not isinstance(confidence, numbers.Real) or not 0.0 < confidence < 1.0:
@@ -180,6 +181,15 @@ def wilson_interval(successes, trials, confidence: float = 0.95):
     return lo, hi
 
 
+def _check_algorithms(algorithms):
+    """ValueError unless ``algorithms`` is a non-empty mapping {name: callable}."""
+    if not isinstance(algorithms, Mapping) or not algorithms:
+        raise ValueError(f"algorithms must be a non-empty mapping {{name: callable}}, got {type(algorithms).__name__}")
+    for name, f in algorithms.items():
+        if not callable(f):
+            raise ValueError(f"algorithms[{name!r}] must be callable, got {type(f).__name__}")
+
+
 def run_trials(algorithms: Mapping[str, Callable], n_trials: int, seed: int,
                scenario: Callable = range_bearing_scenario, repeat: int = 1, **scenario_kwargs) -> TrialResults:
     """Run every algorithm on ``n_trials`` seeded scenarios (trial t uses seed (seed, t)).
@@ -190,11 +200,7 @@ def run_trials(algorithms: Mapping[str, Callable], n_trials: int, seed: int,
     ``time`` is the fastest call (best-of-k timing: less sensitive to other processes and to which
     algorithm runs first on a freshly generated scene); the association of the last call is scored.
     """
-    if not isinstance(algorithms, Mapping) or not algorithms:
-        raise ValueError("algorithms must be a non-empty mapping {name: callable}")
-    for name, f in algorithms.items():
-        if not callable(f):
-            raise ValueError(f"algorithms[{name!r}] must be callable, got {type(f).__name__}")
+    _check_algorithms(algorithms)
     if isinstance(n_trials, bool) or not isinstance(n_trials, numbers.Integral) or n_trials < 1:
         raise ValueError(f"n_trials must be a positive integer, got {n_trials!r}")
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
@@ -253,6 +259,7 @@ def sweep(algorithms: Mapping[str, Callable], n_trials: int, seed: int, base: Ma
     uses the same ``seed``. ``cache`` (a dict kept by the caller) maps a setting to its results, so a
     setting shared by several sweeps (the base scene) is computed once.
     """
+    _check_algorithms(algorithms)
     if not callable(make_kwargs):
         raise ValueError(f"make_kwargs must be callable (value → scenario kwargs), got {type(make_kwargs).__name__}")
     if cache is not None and not isinstance(cache, dict):
@@ -289,6 +296,8 @@ def check_results(results, names=None) -> list:
     known = list(next(iter(results.values())).names)
     if any(list(r.names) != known for r in results.values()):
         raise ValueError("results must hold the same algorithms for every factor value")
+    if isinstance(names, (str, bytes)) or not (names is None or hasattr(names, "__iter__")):
+        raise ValueError(f"names must be a list of algorithm names or None, got {names!r}")
     unknown = [] if names is None else [n for n in names if n not in known]
     if unknown:
         raise ValueError(f"names must be among the algorithms of results {known}, got {unknown}")
@@ -301,6 +310,9 @@ def sweep_table(title: str, results: Mapping, unit: str = "", keys=("precision",
     names = check_results(results)
     if not isinstance(title, str) or not isinstance(unit, str):
         raise ValueError(f"title and unit must be strings, got {type(title).__name__} and {type(unit).__name__}")
+    keys = list(keys) if hasattr(keys, "__iter__") and not isinstance(keys, (str, bytes)) else keys
+    if not isinstance(keys, list) or not keys:
+        raise ValueError(f"keys must be a non-empty list of rates among {list(RATES)}, got {keys!r}")
     bad = [k for k in keys if k not in RATES]
     if bad:
         raise ValueError(f"keys must be among {list(RATES)}, got {bad}")

@@ -96,7 +96,9 @@ class Scenario:
 
 
 def _generator(seed, rng):
-    """The scenario's random generator: ``rng`` if given, else one seeded with ``seed`` (one of them is required)."""
+    """The scenario's random generator: ``rng`` if given, else one seeded with ``seed`` (exactly one of them)."""
+    if rng is not None and seed is not None:
+        raise ValueError("give seed or rng, not both (the scene would come from rng and seed would be ignored)")
     if rng is None:
         if seed is None:
             raise ValueError("give seed or rng: every scenario must be reproducible")
@@ -151,6 +153,9 @@ def _check_scenario_arguments(n_landmarks, size, n_visible, max_range, p_detect,
         max_range = positive_number(max_range, "max_range")
     elif isinstance(n_visible, bool) or not isinstance(n_visible, numbers.Integral) or not 1 <= n_visible <= n_landmarks:
         raise ValueError(f"n_visible must be an integer in [1, n_landmarks={n_landmarks}] or None, got {n_visible!r}")
+    elif max_range is not None:
+        raise ValueError(f"max_range applies only with n_visible=None (the sensor sees its n_visible={n_visible} "
+                         "nearest landmarks otherwise); pass n_visible=None to use a sensor range")
     if isinstance(p_detect, bool) or not isinstance(p_detect, numbers.Real) or not 0.0 <= p_detect <= 1.0:
         raise ValueError(f"p_detect must be a probability in [0, 1], got {p_detect!r}")
     if candidate_range is not None:
@@ -195,7 +200,7 @@ def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size:
     """Draw one scenario (see the module docstring). Give ``seed`` (int or sequence) or a ``rng``.
 
     n_visible: the sensor sees the n_visible nearest landmarks (None: all within max_range).
-    max_range: sensor range (with n_visible=None it decides visibility; otherwise it is ignored).
+    max_range: sensor range; only with n_visible=None, where it decides visibility.
     candidate_range: landmarks whose *estimated* range is ≤ candidate_range are the candidates (None:
     every landmark). Clutter is uniform in the sensed disc (radius = range of the farthest visible
     landmark, or max_range).

@@ -97,6 +97,8 @@ def information_from_covariance(cov, name="covariance"):
         return hit
     sym, _ = check_information(arr, arr.shape[0], name)      # the same checks: finite, symmetric, SPD
     info = np.linalg.inv(arr)
+    if not np.all(np.isfinite(info)):
+        raise ValueError(f"{name} is too close to singular: its inverse (the information matrix) is not finite")
     info = 0.5 * (info + info.T)
     info.flags.writeable = False
     return _cache_put(key, info)
@@ -183,6 +185,11 @@ def _check_edge_class(cls):
         raise TypeError(f"{cls.__name__}.measurement_dimension must be a positive int, got {m!r}")
     if not isinstance(cls.parameters, dict):
         raise TypeError(f"{cls.__name__}.parameters must be a dict name -> default value, got {cls.parameters!r}")
+    for name in ("evaluate", "error_batch"):          # called on the class with the batch, never on an edge
+        member = cls.__dict__.get(name)
+        if member is not None and not isinstance(member, (staticmethod, classmethod)):
+            raise TypeError(f"{cls.__name__}.{name} must be a @staticmethod: it receives (states, z, params"
+                            f"{', jacobians' if name == 'evaluate' else ''}) for all edges of the class, not self")
 
 
 def numeric_jacobians(cls, states, z, params, step=None):
@@ -303,10 +310,18 @@ class BaseEdge:
         return e, (numeric_jacobians(cls, states, z, params) if jacobians else None)
 
     # ----- vertices ------------------------------------------------------------------------------------
+    def _slot(self, k, method):
+        """k as a slot index of this edge class (ValueError naming ``method`` otherwise)."""
+        n = len(self._vertices)
+        if type(k) is int and 0 <= k < n:
+            return k
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k < n:
+            raise ValueError(f"{type(self).__name__}.{method}: slot k must be in 0..{n - 1}, got {k!r}")
+        return int(k)
+
     def set_vertex(self, k, vertex):
         cls = type(self)
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k < len(cls.vertex_types):
-            raise ValueError(f"{cls.__name__}.set_vertex: slot k must be in 0..{len(cls.vertex_types) - 1}, got {k!r}")
+        k = self._slot(k, "set_vertex")
         if vertex is not None:
             if not isinstance(vertex, BaseVertex):
                 raise ValueError(f"{cls.__name__}.set_vertex: expected a vertex, got {type(vertex).__name__}")
@@ -322,7 +337,8 @@ class BaseEdge:
         self._vertices[k] = vertex
 
     def vertex(self, k):
-        return self._vertices[k]
+        """The vertex in slot k (None while the slot is empty)."""
+        return self._vertices[self._slot(k, "vertex")]
 
     def vertices(self):
         return list(self._vertices)
