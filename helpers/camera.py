@@ -41,7 +41,7 @@ from .camera_io import (CALIB_RATIONAL_MODEL, CALIB_THIN_PRISM_MODEL, CALIB_TILT
                         check_calibration, read_camera_xml, write_camera_xml)
 from .paths import data_dir
 from .rotation import rot2rpy, rpy2rot, rpy2rot_derivatives
-from .validation import float_array, integer, positive_number
+from .validation import boolean, float_array, integer, positive_number
 
 __all__ = [
     "Camera",
@@ -216,6 +216,7 @@ class Camera:
         """Pixel of the camera-frame vector(s) rPCc ((3,) or (3, N)); with ``return_jacobian`` also
         ∂pixel/∂rPCc ((2, 3) or (N, 2, 3)). Points with z = 0 raise ValueError; z < 0 is projected through
         x/z like OpenCV (no sign check — use :meth:`is_vector_within_fov` to select visible points)."""
+        return_jacobian = boolean(return_jacobian, "return_jacobian")
         P = _points(rPCc, "rPCc")
         single = P.ndim == 1
         P = P.reshape(3, -1)
@@ -296,7 +297,8 @@ class Camera:
         """
         P = _points(rPNn, "rPNn")
         eta = _pose(eta, "eta")
-        return self._world_to_pixel(P, eta[:3], eta[3:], np.eye(3), np.zeros(3), return_jacobian)
+        return self._world_to_pixel(P, eta[:3], eta[3:], np.eye(3), np.zeros(3),
+                                    boolean(return_jacobian, "return_jacobian"))
 
     def body_to_pixel(self, rPNn, eta_body, return_jacobian: bool = False):
         """Pixel(s) of world point(s) rPNn seen from the camera mounted on a body at pose

@@ -30,7 +30,7 @@ import numbers
 import numpy as np
 from scipy import linalg, special
 
-from .validation import broadcastable, check_symmetric, finite_vector, float_array, index_list
+from .validation import boolean, broadcastable, check_symmetric, finite_vector, float_array, index_list
 
 __all__ = ["Gaussian", "chi2inv", "chi2_interval", "normcdf", "confidence_level", "square_r_factor"]
 
@@ -312,6 +312,7 @@ class Gaussian:
         Returns the value (float), or ``(value, grad)``, ``(value, hess)`` or ``(value, grad, hess)`` with
         grad = −P⁻¹(x − μ) (shape (n,)) and hess = −P⁻¹ (shape (n, n)).
         """
+        return_grad, return_hess = boolean(return_grad, "return_grad"), boolean(return_hess, "return_hess")
         x = float_array(x, "x")
         if x.ndim != 1:
             raise ValueError(f"x must have shape ({self.size},), got {x.shape}")

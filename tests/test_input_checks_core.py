@@ -99,3 +99,30 @@ def test_evaluation_helpers_name_bad_arguments():
     with pytest.raises(ValueError, match="names must be a list of algorithm names"):
         check_results(res, names="nn")
     assert check_results(res, names=["nn"]) == ["nn"]
+
+
+def test_option_flags_must_be_booleans():
+    import matplotlib.pyplot as plt
+
+    from helpers.association.rates import plot_rates
+    from helpers.association.snn import snn
+    from helpers.camera import Camera
+
+    g = Gaussian([0.0, 0.0], np.eye(2))
+    with pytest.raises(ValueError, match="return_grad must be True or False"):
+        g.log_pdf([0.0, 0.0], return_grad="yes")              # a truthy string used to switch it on
+    with pytest.raises(ValueError, match="return_hess must be True or False"):
+        g.log_pdf([0.0, 0.0], return_hess=1)
+    cam = Camera([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]], np.zeros(12), (640, 480))
+    with pytest.raises(ValueError, match="return_jacobian must be True or False"):
+        cam.vector_to_pixel([0.0, 0.0, 1.0], return_jacobian="no")
+    with pytest.raises(ValueError, match="return_jacobian must be True or False"):
+        cam.world_to_pixel([0.0, 0.0, 1.0], np.zeros(6), return_jacobian=1)
+    fig, ax = plt.subplots()
+    try:
+        with pytest.raises(ValueError, match="logx must be True or False"):
+            plot_rates(ax, [1.0, 2.0], [0.5, 0.5], [0.5, 0.5], logx="no")
+    finally:
+        plt.close(fig)
+    with pytest.raises(ValueError, match="enforce_joint_compatibility must be True or False"):
+        snn(Gaussian([0.0, 0.0], np.eye(2)), np.zeros((2, 1)), 1.0, enforce_joint_compatibility="yes")

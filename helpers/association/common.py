@@ -231,7 +231,8 @@ def problem_from_cov(mu, P, Y, n_sigma: float = 3.0) -> AssociationProblem:
     the Cholesky factors L_k of the diagonal blocks: d²_ki = ‖L_k⁻¹ ν_ki‖² by forward substitution, log det
     from the diagonal of L_k (equal to the square-root path's to round-off). The numbers come from one compiled
     pass (``_problem_numbers``: checks, symmetrisation, the blocks' Cholesky factors and the forward
-    substitutions of ``_individual_d2``). Pass the result as ``density`` to any algorithm (with Y None).
+    substitutions of ``_individual_d2``). Pass the result as ``density`` to any algorithm (with Y None)
+    except ``surprisal_nn``, which needs the lab's Gaussian bundle density.
 
     ValueError naming the argument: mu not a finite 2-D array, Y not finite (d, m) with mu's d, P not finite
     of shape (d·n, d·n) or not symmetric, a diagonal block of P not positive definite, n_sigma not positive.

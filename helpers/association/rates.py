@@ -12,7 +12,7 @@ import numbers
 import numpy as np
 
 from ..figures import COLORS
-from ..validation import float_array
+from ..validation import boolean, float_array
 
 __all__ = ["rates", "fmt_rate", "plot_rates"]
 
@@ -46,6 +46,7 @@ def plot_rates(ax, x, precision, recall, logx: bool = True, undefined_label: str
                "precision undefined (0/0)"):
     """Precision (circles) and recall (squares) against ``x``; where precision is NaN the line has a gap
     and the x-range is shaded grey (its legend entry says why). Returns the shaded x-range or None."""
+    logx = boolean(logx, "logx")
     x, precision, recall = (float_array(a, n) for a, n in ((x, "x"), (precision, "precision"), (recall, "recall")))
     if not (x.shape == precision.shape == recall.shape) or x.ndim != 1:
         raise ValueError("x, precision and recall must be 1-D arrays of the same length")

@@ -41,7 +41,7 @@ from scipy import linalg
 from .compatibility import (check_bundle_density, individual_compatibility, individual_compatibility_matrix,
                             joint_compatibility)
 from ..gaussian import chi2inv, confidence_level, square_r_factor
-from ..validation import feature_columns, finite_number, float_array
+from ..validation import boolean, feature_columns, finite_number, float_array
 
 __all__ = ["snn", "snn_reference"]
 
@@ -51,18 +51,12 @@ _LOG_2PI = float(np.log(2.0 * np.pi))
 # ----------------------------------------------------------------------------------------------------
 # validation
 # ----------------------------------------------------------------------------------------------------
-def _check_flag(flag):
-    if not isinstance(flag, (bool, np.bool_)):
-        raise ValueError(f"enforce_joint_compatibility must be a bool, got {flag!r}")
-    return bool(flag)
-
-
 def _check_inputs(density, Y, sU, n_sigma, enforce_joint_compatibility):
     """(μ, Y, sU, enforce) of a valid SNN call; bad input raises ValueError naming the argument."""
     check_bundle_density(density, allow_empty=False)
     Y = feature_columns(float_array(Y, "Y"))
     sU = finite_number(sU, "sU")
-    enforce = _check_flag(enforce_joint_compatibility)
+    enforce = boolean(enforce_joint_compatibility, "enforce_joint_compatibility")
     _gate(n_sigma, 2)
     return density.mean, Y, sU, enforce
 
