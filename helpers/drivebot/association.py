@@ -49,7 +49,8 @@ import math
 
 import numpy as np
 
-from ..online_slam import OnlineFrontEnd, RangeBearingModel, association_scores, check_algorithm, map_errors
+from ..online_slam import (OnlineFrontEnd, RangeBearingModel, association_scores, check_algorithm, check_options,
+                           map_errors)
 from ..online_slam.covariance import hessian_factors
 from ..online_slam.tracks import DROPPED
 from ..validation import integer, nonnegative_number, one_of, probability
@@ -155,8 +156,15 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
         self.frontend.add_pose(self.process_model_edges[-1])
 
     def _handle_landmarks(self, event):
-        # The ids of the event are not read: the front-end associates the columns.
-        self.frontend.process_scan(event.data, event.covariance, information=self._information(event.covariance))
+        # The ids of the event are not read: the front-end associates the columns. A scan that fails is undone by
+        # the front-end (its new landmark vertices leave the graph), so the vertices registered for it go too.
+        registered = len(self.landmark_vertices)
+        try:
+            self.frontend.process_scan(event.data, event.covariance, information=self._information(event.covariance))
+        except BaseException:
+            for key in list(self.landmark_vertices)[registered:]:
+                del self.landmark_vertices[key]
+            raise
         self._built = False
 
     def _check_algorithm(self):
@@ -205,6 +213,8 @@ class HiddenIds:
             raise ValueError("clutter_rate > 0 needs a data_association algorithm: a spurious detection has no id")
         if data_association is None and options:
             raise ValueError(f"{sorted(options)} are options of the association; data_association is None")
+        if data_association is not None:            # refused now, not at the first scan that runs the algorithm
+            check_options(data_association, options.get("algorithm_options"))
         self.options = dict(options)
         self.rng = np.random.default_rng([integer(seed, "seed", minimum=0), _CORRUPTION_STREAM])
         self.scan_truth = []

@@ -3,11 +3,17 @@ construction and on every later assignment, so an option can never hold a value 
 
 ``check_period`` is the optimisation-period rule shared with the runner. ``MIN_TICK``: events less than
 ``_MERGE_TIME`` (1 ms) apart share one vehicle vertex, so a simulator tick must be at least 2 ms long.
+
+``check_effective`` (``run_question``): an option changed from the question's own value must act on the run — one
+that acts through a disabled sensor, or ``keep_first_prediction_edge`` without ``remove_prediction_edges``, would
+be silently ignored, so it raises ValueError saying how to enable it.
 """
 from __future__ import annotations
 
 import math
 import numbers
+
+import numpy as np
 
 from ..graph import EdgeHeadingPrior
 from ..validation import boolean, function, one_of
@@ -15,7 +21,7 @@ from .config import SimulatorConfiguration
 from .edges import BuggyCompassEdge
 from .events import EventType
 
-__all__ = ["check_period", "MIN_TICK"]
+__all__ = ["check_period", "check_effective", "MIN_TICK", "SENSOR_OPTIONS"]
 
 #: Events closer than this (s) share one vehicle vertex.
 _MERGE_TIME = 1e-3
@@ -23,6 +29,15 @@ _MERGE_TIME = 1e-3
 MIN_TICK = 2 * _MERGE_TIME
 #: The event types of the observation sensors and their configuration flags.
 _SENSOR_FLAGS = {EventType.COMPASS: "enable_compass", EventType.GPS: "enable_gps", EventType.LANDMARK: "enable_laser"}
+#: Options of ``run_question`` (configuration fields, SLAM options, its own arguments) that act only through one
+#: sensor: its flag → (sensor, the options).
+SENSOR_OPTIONS = {
+    "enable_compass": ("compass", ("compass_edge", "compass_angular_offset", "compass_measurement_period",
+                                   "r_compass")),
+    "enable_gps": ("GPS", ("gps_measurement_period", "r_gps", "gps_position_offset")),
+    "enable_laser": ("laser", ("laser_measurement_period", "laser_detection_range", "r_laser", "data_association",
+                               "clutter_rate", "detection_probability")),
+}
 
 
 def check_period(period, name="optimization_period"):
@@ -75,3 +90,28 @@ _OPTION_CHECKS = {
     "optimization_algorithm": lambda system, value: one_of(value, "optimization_algorithm",
                                                            ("lm", "gn", "lm-gtsam", "incremental")),
 }
+
+
+def check_effective(changed, config, slam, where: str = "run_question") -> None:
+    """ValueError for the first option named in ``changed`` (the options given a value other than the question's
+    own) that has no effect on a run with configuration ``config`` and SLAM options ``slam``: one that acts through a
+    disabled sensor (``SENSOR_OPTIONS``), or ``keep_first_prediction_edge`` while prediction edges are kept."""
+    if "compass_edge" in changed:
+        one_of(changed["compass_edge"], "compass_edge", ("fixed", "buggy"))
+    if "keep_first_prediction_edge" in changed:
+        boolean(changed["keep_first_prediction_edge"], "keep_first_prediction_edge")
+    for flag, (sensor, names) in SENSOR_OPTIONS.items():
+        hit = [n for n in names if n in changed]
+        if hit and not getattr(config, flag):
+            raise ValueError(f"{where}: {_shown(hit[0], changed)} has no effect: the run has no {sensor} ({flag}="
+                             f"False); pass {flag}=True to use it, or leave {hit[0]} as the question sets it")
+    if "keep_first_prediction_edge" in changed and not slam.get("remove_prediction_edges", False):
+        raise ValueError(f"{where}: {_shown('keep_first_prediction_edge', changed)} has no effect while the "
+                         "prediction edges are kept: it chooses which of them remove_prediction_edges=True removes; "
+                         "pass that too, or leave keep_first_prediction_edge as the question sets it")
+
+
+def _shown(name, options) -> str:
+    """``name=value`` for a message, on one line (an array as a list)."""
+    value = options[name]
+    return f"{name}={value.tolist() if isinstance(value, np.ndarray) else value!r}"

@@ -36,7 +36,9 @@ A run that fails part-way keeps what it has: the exception propagates unchanged 
 """
 from __future__ import annotations
 
+import inspect
 import math
+import numbers
 import time as _time
 
 import numpy as np
@@ -48,6 +50,7 @@ from ..validation import boolean, function
 from . import pruning
 from .association import HiddenIds
 from .config import SimulatorConfiguration
+from .options import check_effective
 from .results import Results
 from .scenarios import Scenario, load_scenario
 from .simulator import DriveBotSimulator, make_rng
@@ -134,10 +137,16 @@ def run_question(name: str, seed=0, progress: bool = False, step_hook=None, data
 
     Bad settings raise ValueError before anything runs (see ``SimulatorConfiguration`` for the bounds; the run
     also needs ``enable_odometry=True``, one vehicle vertex per tick, and ``remove_prediction_edges`` needs an
-    observation sensor). **Failures part-way keep what the run has**: an exception raised by the simulator, the
-    SLAM system or its optimiser (e.g. ``GaugeFreedomError``), a user hook (``step_hook``,
-    ``pre_optimization_hook``) or a ``KeyboardInterrupt`` propagates *unchanged* — same type and message, so
-    ``except GaugeFreedomError`` keeps working — with attributes attached:
+    observation sensor; ``algorithm_options`` are checked against the algorithm). So does an option changed from
+    the question's own value that would have no effect (``options.check_effective``): one of a disabled sensor —
+    ``compass_edge`` or ``compass_angular_offset`` without the compass, ``data_association``, ``clutter_rate`` or
+    ``detection_probability`` without the laser, … — or ``keep_first_prediction_edge`` without
+    ``remove_prediction_edges=True``.
+
+    **Failures part-way keep what the run has**: an exception raised by the simulator, the SLAM system or its
+    optimiser (e.g. ``GaugeFreedomError``), a user hook (``step_hook``, ``pre_optimization_hook``) or a
+    ``KeyboardInterrupt`` propagates *unchanged* — same type and message, so ``except GaugeFreedomError`` keeps
+    working — with attributes attached:
 
     - ``err.tick``: the store index k of the tick being processed (the simulator step after tick k for a failing
       ``step()``; N − 1 for the final optimisation or the covariances at the end);
@@ -150,10 +159,46 @@ def run_question(name: str, seed=0, progress: bool = False, step_hook=None, data
     ``RunError`` raised from it, with the same three attributes.)
     """
     overrides = dict(overrides)
+    given = {**overrides, "data_association": data_association, "clutter_rate": clutter_rate,
+             "detection_probability": detection_probability}
     hidden = HiddenIds.from_arguments(data_association, clutter_rate, detection_probability, seed, overrides)
     scenario, config, slam = question_setup(name, **overrides)
+    check_effective(_changed_options(name, given, config), config, slam)
     return run(config, scenario, seed=seed, progress=progress, question=name, step_hook=step_hook,
                hidden_ids=hidden, **slam)
+
+
+def _defaults(function_) -> dict:
+    return {k: p.default for k, p in inspect.signature(function_).parameters.items() if p.default is not p.empty}
+
+
+def _same(value, default) -> bool:
+    """Whether an option's ``value`` is its ``default``: equal and of the same kind (True is not 1, "5" not 5)."""
+    if value is default:
+        return True
+    if isinstance(default, bool) or isinstance(value, (bool, np.bool_)):
+        return isinstance(value, (bool, np.bool_)) and isinstance(default, bool) and bool(value) == default
+    if isinstance(default, numbers.Real) and isinstance(value, numbers.Real):
+        return value == default
+    return isinstance(default, str) and isinstance(value, str) and value == default
+
+
+def _changed_options(name, given, config) -> dict:
+    """The options of ``given`` whose value differs from question ``name``'s own: its settings (``QUESTIONS``),
+    else the defaults of ``SimulatorConfiguration``, ``DriveBotSLAMSystem`` and ``run_question``. Configuration
+    fields are compared as validated (``config`` against the question's own configuration)."""
+    _, question_config, question_slam = QUESTIONS[name]
+    own = SimulatorConfiguration(**question_config)
+    defaults = {**_defaults(DriveBotSLAMSystem.__init__), **question_slam, **_defaults(run_question)}
+    changed = {}
+    for key, value in given.items():
+        if key in own.field_names():
+            same = np.array_equal(getattr(config, key), getattr(own, key))
+        else:
+            same = key in defaults and _same(value, defaults[key])
+        if not same:
+            changed[key] = value
+    return changed
 
 
 def run(config: SimulatorConfiguration, scenario: Scenario, seed=0, progress: bool = False, question: str = "",

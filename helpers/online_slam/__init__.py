@@ -8,7 +8,9 @@ Modules by responsibility (each imports only modules listed before it, and the l
     covariance      joint marginal covariances of a few vertices from one LDLᵀ factorisation (columns of H⁻¹)
     window          the pose and the new landmarks since the last factorisation, as linear functions of it
     tracks          tentative / confirmed / dropped landmarks and the confirmation rule
-    algorithms      "nn", "mahalanobis", "ml", "jcbb": the L09 algorithms behind one name each
+    scan_guard      the front-end's arguments checked before anything changes, and a scan undone if it fails
+    algorithms      "nn", "mahalanobis", "ml", "jcbb": the L09 algorithms behind one name each, and the check of
+                    their options (``check_options``)
     decisions       individual compatibility, relative uncertainty, ambiguity of a pairing
     closure         loop closure: trusted candidates, duplicates, merging tentative landmarks into old ones
     verification    merges tested after the next optimisation (score test of the split) and undone if refused
@@ -22,7 +24,7 @@ Modules by responsibility (each imports only modules listed before it, and the l
 ids hidden is ``helpers.drivebot.association`` (``run_question(name, data_association="jcbb", …)``), which uses
 this package.
 """
-from .algorithms import ALGORITHMS, check_algorithm
+from .algorithms import ALGORITHMS, check_algorithm, check_options
 from .frontend import OnlineFrontEnd, ScanResult
 from .metrics import association_scores, best_matching, map_errors
 from .models import RangeBearingModel
@@ -30,5 +32,5 @@ from .tracks import ConfirmationRules
 from .victoria_park import VictoriaParkResults, run_victoria_park
 
 __all__ = ["ALGORITHMS", "ConfirmationRules", "OnlineFrontEnd", "RangeBearingModel", "ScanResult",
-           "VictoriaParkResults", "association_scores", "best_matching", "check_algorithm", "map_errors",
-           "run_victoria_park"]
+           "VictoriaParkResults", "association_scores", "best_matching", "check_algorithm", "check_options",
+           "map_errors", "run_victoria_park"]

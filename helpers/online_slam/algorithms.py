@@ -14,12 +14,14 @@ Association`` (landmarks choose observations; ``idx[k]`` = observation column or
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 
 from ..association.jcbb import jcbb
 from ..association.maximum_likelihood import maximum_likelihood
 from ..association.nearest_neighbour import mahalanobis_nn, nearest_neighbour
+from ..validation import integer
 
 __all__ = ["ALGORITHMS", "check_algorithm", "check_options", "associate"]
 
@@ -36,15 +38,43 @@ def check_algorithm(name, argument: str = "data_association") -> str:
     return name
 
 
+def _positive_or_none(what):
+    """A check of an option that is a positive finite number or None, with the algorithm's own message."""
+    def check(value, name):
+        if value is None:
+            return
+        try:
+            ok = not isinstance(value, bool) and isinstance(value, numbers.Real) and math.isfinite(value) and value > 0
+        except OverflowError:                   # an int too large for a float
+            ok = False
+        if not ok:
+            raise ValueError(f"{name} must be {what} or None, got {value!r}")
+    return check
+
+
+#: option → check(value, name): the checks (and messages) the algorithms themselves make when they run
+_CHECKS = {"max_distance": _positive_or_none("a positive finite number"),
+           "alpha": _positive_or_none("a positive finite likelihood"),
+           "max_nodes": lambda value, name: integer(value, name, minimum=1, allow_none=True)}
+
+
 def check_options(name, options) -> dict:
-    """The algorithm's options (its defaults completed); unknown keys raise ValueError naming them."""
+    """The options of algorithm ``name`` (its defaults completed), checked as the algorithm checks them when it
+    runs: unknown keys and bad values raise ValueError naming ``algorithm_options`` and the option. The front-end
+    calls it at construction, and so can any caller that wants bad options refused before a run starts."""
+    check_algorithm(name)
     options = {} if options is None else options
     if not isinstance(options, dict):
         raise ValueError(f"algorithm_options must be a dict or None, got {type(options).__name__}")
-    unknown = sorted(set(options) - set(_OPTIONS[name]))
+    unknown = sorted((k for k in options if k not in _OPTIONS[name]), key=repr)
     if unknown:
         raise ValueError(f"algorithm_options: {unknown} are not options of {name!r} (it takes "
                          f"{list(_OPTIONS[name])}; n_sigma is the front-end's own argument)")
+    for key, value in options.items():
+        try:
+            _CHECKS[key](value, key)
+        except ValueError as err:
+            raise ValueError(f"algorithm_options: {err}") from None
     return {**_DEFAULTS.get(name, {}), **options}
 
 

@@ -49,12 +49,13 @@ import numpy as np
 from ..association.common import problem_from_cov
 from ..gaussian import chi2inv, confidence_level
 from ..graph import VertexPointXY
-from ..validation import boolean, float_array, integer, positive_number
+from ..validation import boolean, integer, positive_number
 from .algorithms import associate, check_algorithm, check_options
 from .covariance import FACTORISE, MarginalColumns, hessian_factors
 from .closure import LoopClosure
 from .decisions import ambiguous_pairings, largest_sd, relative_sigma, sub_problem
 from .models import motion_jacobians
+from .scan_guard import ScanUndo, check_graph_and_model, check_pose_edge, check_pose_vertex, check_scan
 from .scan_kernels import block_largest_sd
 from .tracks import CONFIRMED, DROPPED, TENTATIVE, ConfirmationRules, Track
 from .verification import MergeVerification
@@ -103,7 +104,8 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
         make a landmark of those that agree among themselves (``late``; default off).
 
     Use: ``start(first_pose)``; per new pose ``add_pose(odometry_edge)``; per scan ``process_scan(Z, R)``; after
-    each optimisation ``refresh()``.
+    each optimisation ``refresh()``. Arguments are checked before anything changes (ValueError naming them), and a
+    scan that fails part-way is undone (``scan_guard``).
     """
 
     def __init__(self, graph, model, data_association: str = "jcbb", n_sigma: float = 3.0,
@@ -112,6 +114,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
                  closure_patience: int = 50, verify_merges: bool = False, verify_n_sigma: float = 3.0,
                  verify_iterations: int = 10, late_association: bool = False, late_n_sigma: float = 2.0,
                  late_radius: float = 5.0):
+        check_graph_and_model(graph, model)
         self.algorithm = check_algorithm(data_association)
         self.options = check_options(self.algorithm, algorithm_options)
         self.n_sigma = positive_number(n_sigma, "n_sigma")
@@ -140,6 +143,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
                       "merges": 0, "postponements": 0, "pose_time": 0.0}
         self._ic_gate = float(chi2inv(confidence_level(self.n_sigma), model.dimension))
         self._checked_noise = {}
+        self._undo = None                       # the running scan's ScanUndo
         ex = self.rules.exclusion_n_sigma
         self._exclusion_gate = None if ex is None else float(chi2inv(confidence_level(ex), model.dimension))
         self._init_verification(verify_merges, verify_n_sigma, verify_iterations)
@@ -148,6 +152,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
     # ================================================================================= poses and refreshes
     def start(self, pose_vertex) -> None:
         """The first pose (normally fixed): the window is anchored there with zero covariance."""
+        check_pose_vertex(pose_vertex, self.graph, self.model)
         self.pose = pose_vertex
         self.anchors = [pose_vertex]
         self.columns = MarginalColumns()
@@ -159,6 +164,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
     def add_pose(self, edge) -> None:
         """A new current pose, ``edge.vertex(1)``, predicted from the previous one by the odometry ``edge``."""
         t0 = time.perf_counter()
+        check_pose_edge(edge, self.pose, self.graph, self.model)
         F, Q = motion_jacobians(edge)
         self.window.predict(F, Q)
         self.pose = edge.vertex(1)
@@ -197,28 +203,6 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
         return True
 
     # ================================================================================= the scan's problem
-    def _check_scan(self, Z, R, information):
-        d = self.model.dimension
-        Z = float_array(Z, "Z")
-        if Z.ndim != 2 or Z.shape[0] != d or not np.isfinite(Z).all():
-            raise ValueError(f"Z must be a finite ({d}, m) array of observations (one per column), got shape {Z.shape}")
-        R = float_array(R, "R")
-        key = R.tobytes() if R.shape == (d, d) else None
-        if key is None or key not in self._checked_noise:
-            if R.shape != (d, d) or not np.all(np.isfinite(R)) or not np.allclose(R, R.T):
-                raise ValueError(f"R must be a finite symmetric ({d}, {d}) covariance, got shape {R.shape}")
-            if np.any(np.linalg.eigvalsh(R) <= 0):
-                raise ValueError("R must be positive definite")
-            self._checked_noise = {key: np.linalg.inv(R)}       # the sensor's R rarely changes: checked once
-        information = self._checked_noise[key] if information is None else float_array(information, "information")
-        if information.shape == (d, d):
-            full = np.empty((Z.shape[1], d, d))
-            full[:] = information
-            information = full
-        if information.shape != (Z.shape[1], d, d):
-            raise ValueError(f"information must be ({d}, {d}) or ({Z.shape[1]}, {d}, {d}), got {information.shape}")
-        return Z, R, information
-
     def _widening(self):
         """(range, bearing) widening of the footprint for candidates: the model's margins plus n_σ times the
         position and heading standard deviations of the current pose."""
@@ -282,17 +266,32 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
     # ================================================================================= one scan
     def process_scan(self, Z, R, information=None) -> ScanResult:
         """Associate one scan of the current pose (module docstring). ``R`` is the observations' noise
-        covariance, ``information`` the edges' Ω (default R⁻¹; (d, d) or one per observation)."""
+        covariance, ``information`` the edges' Ω (default R⁻¹; (d, d) or one per observation). Z, R and Ω are
+        checked before anything changes; a scan that raises part-way is undone (``scan_guard.ScanUndo``)."""
         t_scan = time.perf_counter()
-        Z, R, information = self._check_scan(Z, R, information)
+        Z, R, information, noise = check_scan(self.model, Z, R, information, self._checked_noise)
         if self.pose is None:
             raise ValueError("process_scan: call start(first_pose) first")
-        m, scan = Z.shape[1], self.scan_count
-        self.scan_count += 1
-        result = ScanResult(m)
         x = self.pose.estimate
         wkeys, gidx = self._candidates(x)
         cands = [self.tracks[k] for k in wkeys] + [self._factorised[i] for i in gidx]
+        self._undo = ScanUndo(self, cands)
+        try:
+            result = self._scan(Z, R, information, x, wkeys, gidx, cands)
+        except BaseException:
+            self._undo.restore()
+            raise
+        finally:
+            self._undo = None
+        self._checked_noise = noise
+        self.stats["scan_time"] += time.perf_counter() - t_scan
+        return result
+
+    def _scan(self, Z, R, information, x, wkeys, gidx, cands) -> ScanResult:
+        """``process_scan`` once its arguments are checked and its undo recorded; the edges are added last."""
+        m, scan = Z.shape[1], self.scan_count
+        self.scan_count += 1
+        result = ScanResult(m)
         result.candidates = [t.key for t in cands]
         obs0 = len(self.observation_log["key"])
         self._log(scan, m)
@@ -329,11 +328,10 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
                 confirmable.append((t, int(j)))
         self._closure_stage(confirmable, closure, scan, edges, result)
         self._expire(scan, result)
-        if edges:
+        self.observation_log["key"][obs0:obs0 + m] = result.labels.tolist()
+        if edges:                       # last: add_edges checks everything before it adds anything
             self.graph.add_edges(self.model.edge_class, [(p, v) for p, v, _, _ in edges],
                                  np.array([e[2] for e in edges]), np.array([e[3] for e in edges]))
-        self.observation_log["key"][obs0:obs0 + m] = result.labels.tolist()
-        self.stats["scan_time"] += time.perf_counter() - t_scan
         return result
 
     def _outcome(self, t, j, x, obs0, Z, information, scan, edges, confirmable, result):
@@ -368,6 +366,8 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
     def _confirm(self, t, scan, edges, result):
         vertex = self.landmark_factory(t.key, self.window.means[t.key])
         self.graph.add_vertex(vertex)
+        if self._undo is not None:
+            self._undo.vertices.append(vertex)  # removed again if the scan fails
         self._attach(t, vertex, scan, edges)
         result.confirmed.append(t.key)
 

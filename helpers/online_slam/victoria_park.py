@@ -65,7 +65,9 @@ like the tuned setting itself: with the file's noise model the map is already wr
 """
 from __future__ import annotations
 
+import inspect
 import math
+import numbers
 import time
 from dataclasses import dataclass, field
 
@@ -74,8 +76,8 @@ from tqdm import tqdm
 
 from ..datasets import build_optimizer, read_dataset
 from ..graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
-from ..validation import integer
-from .algorithms import check_algorithm
+from ..validation import integer, positive_number
+from .algorithms import ALGORITHMS, check_algorithm
 from .frontend import OnlineFrontEnd
 from .metrics import association_scores
 from .models import RangeBearingModel
@@ -255,6 +257,60 @@ def _compose(p, z):
     return np.array([p[0] + c * z[0] - s * z[1], p[1] + s * z[0] + c * z[1], th])
 
 
+#: Arguments of ``run_victoria_park`` that only the online front-end reads: with ``data_association=None`` (the
+#: known-id pipeline) each must keep its default (the sensor footprint and the association's options; the
+#: known-id reference is then the run itself).
+_ASSOCIATION_ONLY = ("max_range", "field_of_view", "n_sigma", "algorithm_options", "rules", "association_space",
+                     "closure_sigma", "closure_support", "verify_merges", "verify_n_sigma", "late_association",
+                     "late_n_sigma", "known_id_reference")
+
+
+def _is_default(name, value, default) -> bool:
+    """Whether ``value`` is the default of ``run_victoria_park``'s argument ``name`` (a number equal to a numeric
+    default counts; a bool only as a bool; ``rules`` may also be ``VICTORIA_PARK_RULES``, ``algorithm_options`` {})."""
+    if value is default or (name == "algorithm_options" and isinstance(value, dict) and not value):
+        return True
+    if name == "rules":
+        return isinstance(value, ConfirmationRules) and value == VICTORIA_PARK_RULES
+    if isinstance(default, bool) or isinstance(value, (bool, np.bool_)):
+        return isinstance(value, (bool, np.bool_)) and isinstance(default, bool) and bool(value) == default
+    if isinstance(default, numbers.Real) and isinstance(value, numbers.Real):
+        return value == default
+    return isinstance(value, str) and value == default
+
+
+def _check_noise_model(measurement_sigmas, odometry_scale) -> None:
+    """ValueError unless ``measurement_sigmas`` is None or two positive finite numbers and ``odometry_scale`` a
+    positive finite number (text and bools are not numbers)."""
+    positive_number(odometry_scale, "odometry_scale")
+    if measurement_sigmas is None:
+        return
+    try:
+        pair = list(measurement_sigmas) if not isinstance(measurement_sigmas, (str, bytes, dict)) else None
+    except TypeError:
+        pair = None
+    if pair is None or len(pair) != 2 or not all(
+            isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v) and v > 0
+            for v in pair):
+        raise ValueError(f"measurement_sigmas must be None or two positive finite numbers (σ_range [m], "
+                         f"σ_bearing [rad]), got {measurement_sigmas!r}")
+
+
+def _check_association_options(data_association, model, options, given) -> None:
+    """Every front-end option checked before the file is read: with an algorithm, by building a front-end on an
+    empty graph (the same checks and messages as the run's); without one, each association-only argument must keep
+    its default (``_ASSOCIATION_ONLY``)."""
+    if data_association is not None:
+        OnlineFrontEnd(SparseOptimizer(), model, data_association, **options)
+        return
+    defaults = inspect.signature(run_victoria_park).parameters
+    for name in _ASSOCIATION_ONLY:
+        if not _is_default(name, given[name], defaults[name].default):
+            raise ValueError(f"{name}={given[name]!r} has no effect without data association (data_association="
+                             f"None runs the known-id pipeline); pass an algorithm ({', '.join(map(repr, ALGORITHMS))})"
+                             f" or leave {name} at its default")
+
+
 def run_victoria_park(data_association: str | None = "jcbb", optimization_period: int = 10,
                       optimization_iterations: int = 10, max_range: float = 25.0,
                       field_of_view: float = math.pi, n_sigma: float = 3.0, algorithm_options=None,
@@ -268,7 +324,9 @@ def run_victoria_park(data_association: str | None = "jcbb", optimization_period
     known-id pipeline itself; there ``scan_probe(pose estimate, Z, ids, {file id: landmark vertex})``, if given,
     is called before each scan is added (what the pipeline knows at that moment: ``vp_analysis``). Front-end
     options as in ``OnlineFrontEnd`` (``rules`` default ``VICTORIA_PARK_RULES``; ``verify_merges`` and
-    ``verify_n_sigma``: merge verification with undo, ``verification``)."""
+    ``verify_n_sigma``: merge verification with undo, ``verification``). Every argument is checked before the file
+    is read; with ``data_association=None`` the arguments only the front-end reads (``_ASSOCIATION_ONLY``) must
+    keep their defaults (ValueError otherwise: they would have no effect)."""
     if scan_probe is not None and (data_association is not None or not callable(scan_probe)):
         raise ValueError("scan_probe must be a callable, and applies to the known-id run (data_association=None) "
                          f"only; got scan_probe={scan_probe!r} with data_association={data_association!r}")
@@ -286,6 +344,10 @@ def run_victoria_park(data_association: str | None = "jcbb", optimization_period
                "rules": VICTORIA_PARK_RULES if rules is None else rules, "closure_sigma": closure_sigma,
                "closure_support": closure_support, "verify_merges": verify_merges, "verify_n_sigma": verify_n_sigma,
                "late_association": late_association, "late_n_sigma": late_n_sigma}
+    _check_noise_model(measurement_sigmas, odometry_scale)
+    _check_association_options(data_association, model, options, {
+        "max_range": max_range, "field_of_view": field_of_view, "association_space": association_space,
+        "known_id_reference": known_id_reference, **options, "rules": rules})
     stream = victoria_park_scans(read_dataset("victoria_park"))
     stream = _with_sigmas(stream, measurement_sigmas, odometry_scale)
     graph, fe, truth, chi2, n_opt, seconds = _process(stream, data_association, model, period, iterations,
