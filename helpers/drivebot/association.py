@@ -45,6 +45,7 @@ true detections — are those of the clean run:
 """
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
@@ -156,16 +157,22 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
         self.frontend.add_pose(self.process_model_edges[-1])
 
     def _handle_landmarks(self, event):
-        # The ids of the event are not read: the front-end associates the columns. A scan that fails is undone by
-        # the front-end (its new landmark vertices leave the graph), so the vertices registered for it go too.
+        # The ids of the event are not read: the front-end associates the columns.
+        with self._registrations_kept_only_on_success():
+            self.frontend.process_scan(event.data, event.covariance, information=self._information(event.covariance))
+        self._built = False
+
+    @contextlib.contextmanager
+    def _registrations_kept_only_on_success(self):
+        """A scan that fails is undone by the front-end (its new landmark vertices leave the graph), so the
+        vertices registered here for it are forgotten too."""
         registered = len(self.landmark_vertices)
         try:
-            self.frontend.process_scan(event.data, event.covariance, information=self._information(event.covariance))
+            yield
         except BaseException:
             for key in list(self.landmark_vertices)[registered:]:
                 del self.landmark_vertices[key]
             raise
-        self._built = False
 
     def _check_algorithm(self):
         if self.optimization_algorithm == "incremental":
