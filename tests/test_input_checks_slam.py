@@ -333,6 +333,23 @@ def test_run_question_accepts_defaults_and_options_that_act(no_run, name, kwargs
         run_question(name, **kwargs)
 
 
+@pytest.mark.parametrize("name, variants, overrides, match", [
+    ("q2_b", {"a": {}, "b": {"keep_first_prediction_edge": True}}, {},
+     r"run_variants \(variant 'b'\): keep_first_prediction_edge=True has no effect"),
+    ("q1_b", {"a": {}}, dict(compass_edge="buggy"), r"variant 'a'\): compass_edge='buggy' has no effect"),
+])
+def test_run_variants_refuses_options_without_effect_before_it_runs(no_run, name, variants, overrides, match):
+    with pytest.raises(ValueError, match=match):
+        runner.run_variants(name, variants, **overrides)
+
+
+def test_run_variants_accepts_the_options_that_act(no_run):
+    variants = {"full": {}, "keep first": {"remove_prediction_edges": True, "keep_first_prediction_edge": True},
+                "remove all": {"remove_prediction_edges": True, "keep_first_prediction_edge": False}}
+    with pytest.raises(_Failure, match="the run started"):
+        runner.run_variants("q3_a", variants)
+
+
 def test_a_failed_drivebot_scan_leaves_no_landmark_outside_the_graph():
     """A scan that fails inside the front-end is undone there; the vertices the system registered for it go too."""
     armed = {}

@@ -231,7 +231,8 @@ def run_variants(name: str, variants: dict, seed=0, progress: bool = False, **ov
     ``run_question``); the others carry on. Any other exception (a failing hook, the simulator, a
     KeyboardInterrupt) stops the pass and propagates with ``tick`` and ``phase`` and, as ``results``, the dict
     {variant: partial Results, or that variant's GraphError}. ``run_time`` of each Results is the simulator's
-    time plus that system's own.
+    time plus that system's own. As in ``run_question``, an option that would have no effect in a variant raises
+    ValueError before anything runs (``options.check_effective``).
     """
     if not isinstance(variants, dict) or not variants:
         raise ValueError("variants must be a non-empty dict {name: {SLAM option: value}}")
@@ -243,6 +244,8 @@ def run_variants(name: str, variants: dict, seed=0, progress: bool = False, **ov
             raise ValueError(f"variant {vname!r}: options must be a dict of SLAM options {list(SLAM_OPTIONS)}, "
                              f"got {opts!r}")
         scenario, config, slams[vname] = question_setup(name, **overrides, **opts)
+        check_effective(_changed_options(name, {**overrides, **opts}, config), config, slams[vname],
+                        where=f"run_variants (variant {vname!r})")
     return _main_loop(config, scenario, seed, slams, progress, name, None, catch=True)
 
 
