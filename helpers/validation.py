@@ -150,6 +150,19 @@ def broadcastable(**arrays) -> tuple:
         raise ValueError(f"{' and '.join(arrays)} must broadcast to a common shape, got {shapes}") from None
 
 
+def same_setting(value, default) -> bool:
+    """Whether an option's ``value`` is its ``default``: the same object, or equal and of the same kind — a bool
+    only as a bool (True is not 1), a number as a number, text as text ("5" is not 5). Used to tell an option a
+    caller changed from one left as it was."""
+    if value is default:
+        return True
+    if isinstance(default, bool) or isinstance(value, (bool, np.bool_)):
+        return isinstance(value, (bool, np.bool_)) and isinstance(default, bool) and bool(value) == default
+    if isinstance(default, numbers.Real) and isinstance(value, numbers.Real):
+        return value == default
+    return isinstance(default, str) and isinstance(value, str) and value == default
+
+
 def check_symmetric(P, name: str) -> None:
     """ValueError naming ``name`` unless the square float array ``P`` is symmetric to round-off: entrywise
     |P − Pᵀ| ≤ 1e−12·max(1, max|P|) + 1e−10·|Pᵀ| (np.allclose's test, without its overhead: covariances are

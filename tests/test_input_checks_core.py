@@ -126,3 +126,11 @@ def test_option_flags_must_be_booleans():
         plt.close(fig)
     with pytest.raises(ValueError, match="enforce_joint_compatibility must be True or False"):
         snn(Gaussian([0.0, 0.0], np.eye(2)), np.zeros((2, 1)), 1.0, enforce_joint_compatibility="yes")
+
+
+def test_same_setting_tells_a_changed_option_from_its_default():
+    from helpers.validation import same_setting
+    assert same_setting(True, True) and same_setting(np.bool_(False), False) and same_setting(3, 3.0)
+    assert same_setting("jcbb", "jcbb") and same_setting(None, None)
+    assert not same_setting(1, True) and not same_setting(True, 1) and not same_setting("5", 5)
+    assert not same_setting(2.5, 3.0) and not same_setting(np.eye(2), None)

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import inspect
 import math
-import numbers
 import time as _time
 
 import numpy as np
@@ -46,7 +45,7 @@ from tqdm import tqdm
 
 from ..graph import GraphError
 from ..timing import timed
-from ..validation import boolean, function
+from ..validation import boolean, function, same_setting
 from . import pruning
 from .association import HiddenIds
 from .config import SimulatorConfiguration
@@ -172,17 +171,6 @@ def _defaults(function_) -> dict:
     return {k: p.default for k, p in inspect.signature(function_).parameters.items() if p.default is not p.empty}
 
 
-def _same(value, default) -> bool:
-    """Whether an option's ``value`` is its ``default``: equal and of the same kind (True is not 1, "5" not 5)."""
-    if value is default:
-        return True
-    if isinstance(default, bool) or isinstance(value, (bool, np.bool_)):
-        return isinstance(value, (bool, np.bool_)) and isinstance(default, bool) and bool(value) == default
-    if isinstance(default, numbers.Real) and isinstance(value, numbers.Real):
-        return value == default
-    return isinstance(default, str) and isinstance(value, str) and value == default
-
-
 def _changed_options(name, given, config) -> dict:
     """The options of ``given`` whose value differs from question ``name``'s own: its settings (``QUESTIONS``),
     else the defaults of ``SimulatorConfiguration``, ``DriveBotSLAMSystem`` and ``run_question``. Configuration
@@ -195,7 +183,7 @@ def _changed_options(name, given, config) -> dict:
         if key in own.field_names():
             same = np.array_equal(getattr(config, key), getattr(own, key))
         else:
-            same = key in defaults and _same(value, defaults[key])
+            same = key in defaults and same_setting(value, defaults[key])
         if not same:
             changed[key] = value
     return changed

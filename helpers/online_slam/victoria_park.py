@@ -76,7 +76,7 @@ from tqdm import tqdm
 
 from ..datasets import build_optimizer, read_dataset
 from ..graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
-from ..validation import integer, positive_number
+from ..validation import integer, positive_number, same_setting
 from .algorithms import ALGORITHMS, check_algorithm
 from .frontend import OnlineFrontEnd
 from .metrics import association_scores
@@ -190,17 +190,13 @@ def _optimise(graph, frontend, iterations):
 
 def _with_sigmas(stream, sigmas, odometry_scale=1.0):
     """The stream with every observation's information replaced by diag(σ_r, σ_β)⁻² (None: the file's) and the
-    odometry covariances multiplied by ``odometry_scale``."""
+    odometry covariances multiplied by ``odometry_scale`` (both checked by ``_check_noise_model``)."""
     scale = float(odometry_scale)
-    if not (np.isfinite(scale) and scale > 0):
-        raise ValueError(f"odometry_scale must be a positive number, got {odometry_scale!r}")
     if scale != 1.0:
         stream = [(s[0], s[1], s[2], s[3], s[4] / scale) if s[0] == "odometry" else s for s in stream]
     if sigmas is None:
         return stream
     sr, sb = (float(v) for v in sigmas)
-    if not (np.isfinite(sr) and np.isfinite(sb) and sr > 0 and sb > 0):
-        raise ValueError(f"measurement_sigmas must be two positive numbers (σ_range, σ_bearing), got {sigmas!r}")
     info = np.diag([1.0 / sr ** 2, 1.0 / sb ** 2])
     return [s if s[0] == "odometry" else (s[0], s[1], s[2], np.broadcast_to(info, s[3].shape).copy(), s[4])
             for s in stream]
@@ -272,11 +268,7 @@ def _is_default(name, value, default) -> bool:
         return True
     if name == "rules":
         return isinstance(value, ConfirmationRules) and value == VICTORIA_PARK_RULES
-    if isinstance(default, bool) or isinstance(value, (bool, np.bool_)):
-        return isinstance(value, (bool, np.bool_)) and isinstance(default, bool) and bool(value) == default
-    if isinstance(default, numbers.Real) and isinstance(value, numbers.Real):
-        return value == default
-    return isinstance(value, str) and value == default
+    return same_setting(value, default)
 
 
 def _check_noise_model(measurement_sigmas, odometry_scale) -> None:
