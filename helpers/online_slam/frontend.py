@@ -406,7 +406,10 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
         return t
 
     def _expire(self, scan, result):
-        for t in self.tracks:
+        """Drop the tentative landmarks that waited too long. Every tentative track is in the window (a new track
+        enters it, a refresh re-enters the survivors, a drop removes it), so only the window's are visited."""
+        for key in sorted(self.window.keys):
+            t = self.tracks[key]
             if t.status != TENTATIVE:
                 continue
             if t.postponed_since >= 0:

@@ -16,8 +16,9 @@ candidates and the tentative landmarks, every one of which is in the window), th
 of left-out observations, the merge records and the landmark vertices it adds to the graph — recorded before the
 scan and put back if anything raises before its edges are in the graph (the last step that can fail:
 ``add_edges`` checks everything before it adds anything). The record is cheap: references to the window's
-arrays (a scan replaces them, it never writes into them), copies of small dicts and lists, and copies of the
-fields of the few tracks involved.
+arrays (a scan replaces them, it never writes into them), copies of small dicts and lists, the fields of the few
+tracks involved, and the lengths of their lists (a scan only appends to a track's lists or replaces them, so
+the lists the fields refer to are cut back to those lengths).
 """
 from __future__ import annotations
 
@@ -129,9 +130,6 @@ def check_scan(model, Z, R, information, noise_cache: dict):
     return Z, R, information, noise_cache
 
 
-_TRACK_LISTS = ("pending", "observations")
-
-
 class ScanUndo:
     """The front-end's state before a scan, and ``restore()`` to put it back (module docstring). ``cands``: the
     scan's candidate tracks; ``vertices``: the landmark vertices the scan has added to the graph (``_confirm``)."""
@@ -143,8 +141,7 @@ class ScanUndo:
         self.n_tracks = len(fe.tracks)
         touched = {id(t): t for t in cands}
         touched.update((id(fe.tracks[k]), fe.tracks[k]) for k in fe.window.keys)
-        self.tracks = [(t, dict(vars(t)), [(getattr(t, f), list(getattr(t, f))) for f in _TRACK_LISTS])
-                       for t in touched.values()]
+        self.tracks = [(t, t.__dict__.copy(), len(t.pending), len(t.observations)) for t in touched.values()]
         w = fe.window
         self.window = (w.A, w.P, dict(w.rows), dict(w.means), list(w._order))
         self.stats = dict(fe.stats)
@@ -162,10 +159,10 @@ class ScanUndo:
         for log in fe.observation_log.values():
             del log[self.n_log:]
         del fe.tracks[self.n_tracks:]
-        for t, fields, lists in self.tracks:
-            vars(t).update(fields)
-            for items, content in lists:        # the track's own list objects, with their contents
-                items[:] = content
+        for t, fields, n_pending, n_observations in self.tracks:
+            t.__dict__.update(fields)           # the track's own list objects, cut back to their lengths
+            del t.pending[n_pending:]
+            del t.observations[n_observations:]
         w = fe.window
         w.A, w.P, w.rows, w.means, w._order = self.window
         fe.stats.clear()
