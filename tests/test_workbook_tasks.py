@@ -1,7 +1,9 @@
-"""tools/workbook.py's parallel test runs: the worker count, its bad input, and one BLAS thread per worker."""
+"""tools/workbook.py's parallel test runs: the worker count, its bad input, one BLAS thread per worker, and which
+notebooks run again when their kernel did not start."""
 import json
 import pathlib
 import sys
+from xml.sax.saxutils import quoteattr
 
 import pytest
 
@@ -47,3 +49,32 @@ def test_stored_run_seconds_sums_the_cell_timings(tmp_path):
     assert workbook.stored_run_seconds(nb) == pytest.approx(5.0)
     (tmp_path / "bad.ipynb").write_text("not json", encoding="utf-8")
     assert workbook.stored_run_seconds(tmp_path / "bad.ipynb") == 0.0
+
+
+def _report(tmp_path, cases):
+    """A junit-xml report as pytest writes it for nbval items: (notebook, cell, None | ("error", message))."""
+    rows = []
+    for notebook, cell, bad in cases:
+        body = "" if bad is None else "<%s message=%s>trace</%s>" % (bad[0], quoteattr(bad[1]), bad[0])
+        rows.append('<testcase classname="notebooks.%s" name="Cell %d" time="0.1">%s</testcase>'
+                    % (notebook, cell, body))
+    path = tmp_path / "report.xml"
+    path.write_text('<?xml version="1.0" encoding="utf-8"?><testsuites><testsuite name="pytest">%s</testsuite>'
+                    "</testsuites>" % "".join(rows))
+    return path
+
+
+def test_only_notebooks_whose_kernel_did_not_start_run_again(tmp_path):
+    notebooks = [workbook.ROOT / "notebooks" / n for n in ("01_a.ipynb", "02_b.ipynb", "03_c.ipynb")]
+    died = ("error", 'failed on setup with "RuntimeError: Kernel died before replying to kernel_info"')
+    report = _report(tmp_path, [("01_a.ipynb", 0, None), ("02_b.ipynb", 0, died), ("02_b.ipynb", 1, died),
+                                ("03_c.ipynb", 0, None)])
+    assert workbook.kernel_start_failures(report, notebooks) == [notebooks[1]]
+    wrong = ("failure", "Cell outputs differ")
+    report = _report(tmp_path, [("01_a.ipynb", 0, wrong), ("02_b.ipynb", 0, died)])
+    assert workbook.kernel_start_failures(report, notebooks) is None          # a real failure: no second chance
+    report = _report(tmp_path, [("01_a.ipynb", 0, None)])
+    assert workbook.kernel_start_failures(report, notebooks) is None          # nothing to run again
+    assert workbook.kernel_start_failures(tmp_path / "missing.xml", notebooks) is None
+    report = _report(tmp_path, [("09_other.ipynb", 0, died)])
+    assert workbook.kernel_start_failures(report, notebooks) is None          # not one of the notebooks run
