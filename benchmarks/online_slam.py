@@ -129,7 +129,7 @@ def victoria_park():
                       ("the same with late association", TUNED_LATE),
                       ("the same with σ_r 0.33 m, σ_β 0.088 rad (× 1.1)",
                        {**TUNED_LATE, "measurement_sigmas": (0.33, 0.088)})):
-        res, wall, cpu = _timed(run_victoria_park, "jcbb", batch_reference=batch is None, **kw)
+        res, _, cpu = _timed(run_victoria_park, "jcbb", batch_reference=batch is None, **kw)
         r = res.association_report()
         batch = r["batch_chi2"] if batch is None else batch
         print(_row([label, *_vp_cells(r, cpu), f"{r['known_id_run_time']:.1f}"]), flush=True)
@@ -155,7 +155,7 @@ def victoria_park_noise():
     grid = [(s, 10.0) for s in (1.05, 1.09, 1.10, 1.11, 1.12, 1.15)] + [(1.10, c) for c in (6.0, 8.0, 12.0, 15.0)]
     for scale, odo in grid:
         sig = (round(0.3 * scale, 6), round(0.08 * scale, 6))
-        res, wall, cpu = _timed(run_victoria_park, "jcbb", **{**TUNED_LATE, "measurement_sigmas": sig,
+        res, _, cpu = _timed(run_victoria_park, "jcbb", **{**TUNED_LATE, "measurement_sigmas": sig,
                                                               "odometry_scale": odo})
         r = res.association_report()
         met = r["agreement"] >= 0.95 and abs(r["chi2_ratio"] - 1.0) <= 0.10

@@ -32,6 +32,7 @@ import platform
 import shutil
 import subprocess
 import sys
+import xml.etree.ElementTree as ElementTree
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 VENV = ROOT / ".venv"
@@ -177,7 +178,6 @@ KERNEL_START_FAILURES = ("Kernel died before replying to kernel_info", "Kernel d
 def kernel_start_failures(report, notebooks):
     """The notebooks of a junit-xml ``report`` that failed, when every failure in it is a kernel that did not
     start; None when any other failure is there (or the report cannot be read)."""
-    import xml.etree.ElementTree as ElementTree
     try:
         cases = list(ElementTree.parse(str(report)).iter("testcase"))
     except (OSError, ElementTree.ParseError):
