@@ -1,6 +1,7 @@
 """Online SLAM with data association (issue 15): the targets table.
 
-    .venv/bin/python benchmarks/online_slam.py [--sections targets,timing,nn,vp,vpnoise] [--repeats 2] [--seeds 0,1,2,3,4]
+    .venv/bin/python benchmarks/online_slam.py [--sections targets,timing,nn,vp,vpnoise,period] [--repeats 2]
+                                               [--seeds 0,1,2,3,4]
 
 Sections (each prints a markdown table):
 
@@ -15,6 +16,10 @@ Sections (each prints a markdown table):
   known-id run of the same pipeline and the loader's batch solution; with the file's noise model, a re-weighted
   one, notebook 23's tuned setting, that setting with late association (``online_slam.late``), and the same with
   both tree σ scaled by 1.1. Targets: agreement ≥ 0.95 in ≤ 120 s, χ² within 10 % of the known-id solution's.
+- ``period`` (not in the default list; about 1 min per seed): q2_e with "jcbb" over ``--seeds``, no clutter, with
+  the graph updated for association every 100 (the default), 120, 150, 175, 200 and 250 ticks
+  (``association_period``): time, precision, recall, landmarks, merges into old landmarks (and how many joined two
+  true landmarks), pairings refused as ambiguous, updates.
 - ``vpnoise`` (not in the default list; about 5 min): how those two targets move with the noise model. The tuned
   setting with late association, with the tree σ (0.3 m, 0.08 rad) scaled by 1.05 … 1.15 and the odometry
   covariance scaled by 6 … 15.
@@ -91,6 +96,21 @@ def timing(repeats):
         (w0, c0), (w1, c1) = best[None], best["jcbb"]
         print(_row([q, f"{w0:.1f} / {c0:.1f}", f"{w1:.1f} / {c1:.1f}", f"{w1 / w0:.2f}", f"{c1 / c0:.2f}",
                     " / ".join(f"{p:.1f}" for p in parts)]), flush=True)
+
+
+def association_periods(seeds):
+    from helpers.drivebot.association_support import run_summary
+    print("\n### q2_e with JCBB, no clutter: the association update's period\n")
+    print(_row(["seed", "association_period [ticks]", "wall [s]", "precision", "recall", "landmarks (true)",
+                "merges (joining two true landmarks)", "pairings refused as ambiguous", "updates"]))
+    print(_row(["---"] * 9))
+    for seed in seeds:
+        for period in (100, 120, 150, 175, 200, 250):
+            res, wall, _ = _timed(run_question, "q2_e", data_association="jcbb", seed=seed, association_period=period)
+            r, s, st = res.association_report(), run_summary(res), res.system.frontend.stats
+            print(_row([seed, period, f"{wall:.1f}", f"{r['precision']:.4f}", f"{r['recall']:.4f}",
+                        f"{r['n_landmarks']} ({r['n_true_landmarks']})", f"{s['merges']} ({s['wrong_merges']})",
+                        st["ambiguous_rejected"], st["refreshes"]]), flush=True)
 
 
 def nn_seeds(seeds):
@@ -184,6 +204,8 @@ def main():
         victoria_park()
     if "vpnoise" in sections:
         victoria_park_noise()
+    if "period" in sections:
+        association_periods([int(s) for s in args.seeds.split(",")])
 
 
 if __name__ == "__main__":
