@@ -36,19 +36,12 @@ separate factorisation for the covariances, recall within 0.0004, and saves abou
 are in ``benchmarks/RESULTS.md``).
 
 The period is not a free knob. Between updates the front-end's window fuses no observation
-(``helpers.online_slam.window``), so the pose's covariance grows with the odometry alone, and landmarks seen moments
-ago start to look like loop closures. On q2_e without clutter, longer periods (120–250 ticks) merge many more
-tentative landmarks into old ones (81–91 merges at 200–250 ticks against 7–8 at 100) and refuse more pairings
-as ambiguous; recall falls below 0.95 at 150 and 175 ticks on seed 0 and at 200 on seed 2, and the runs are at
-most about 1 s faster (``benchmarks/online_slam.py --sections period``; ``benchmarks/RESULTS.md``).
-
-``SensorCorruption`` is seeded with its own Generator, so the simulator's draws — and with them the truth and the
-true detections — are those of the clean run:
-
-- every true detection is kept with probability ``detection_probability`` (missed detections);
-- ``clutter_rate`` spurious detections per laser scan on average (Poisson), uniform in the sensor footprint
-  (range r = r_max √u, bearing uniform in [−π, π)), also on scans that saw no landmark;
-- the columns are shuffled, and the event's ids are replaced by the column numbers 1 … n.
+(``helpers.online_slam.window``), so the landmarks' standard deviations relative to the vehicle grow with the
+odometry alone; more candidates exceed ``closure_sigma`` and are handled as loop closures (a tentative landmark,
+merged later or refused as ambiguous). On q2_e without clutter, periods of 120–250 ticks merge far more tentative
+landmarks into old ones (81–91 merges at 200–250 ticks against 7–8 at 100); recall falls below 0.95 at 150 and
+175 ticks on seed 0 and at 200 on seed 2, and the runs are at most about 1 s faster
+(``benchmarks/online_slam.py --sections period``; ``benchmarks/RESULTS.md``).
 """
 from __future__ import annotations
 
