@@ -19,8 +19,8 @@ matrices are printed:
     qdldl numeric        Solver.update(H) on the built solver: the numeric factorisation alone
     block ordering       AMD (cvxopt) on the vertex graph (one node per vertex, an edge per non-zero block),
                          expanded to the rows: the pattern of the blocks and the ordering
-    CHOLMOD, that order  the cvxopt matrix of H (the scalar upper triangle), CHOLMOD's symbolic analysis with the
-                         block ordering (nmethods 1: no other ordering tried; not postordered), simplicial
+    CHOLMOD, that order  the cvxopt matrix of H (``cholmod_backend.pattern_matrix``), CHOLMOD's symbolic analysis
+                         with the block ordering (nmethods 1: no other ordering tried; not postordered), simplicial
                          numeric LDLᵀ, and the factor copied out (getfactor) as the covariance columns would need it
     SuperLU, that order  H permuted by the block ordering (scipy), SuperLU without column ordering and with
                          diagonal pivots (splu, permc_spec NATURAL, diag_pivot_thresh 0, symmetric mode) and its
@@ -46,19 +46,22 @@ except ImportError:
     sys.exit("benchmarks/association_factorisation.py needs cvxopt (pip install cvxopt)")
 
 import helpers.drivebot.association as drivebot_association
+from helpers.graph import cholmod_backend
 from helpers.drivebot.runner import run_question
 
 
 def capture(seed):
-    """[(upper-triangle CSC H, vertex first rows, vertex dimensions)] of every association update of the run."""
+    """[(upper-triangle CSC H, vertex first rows, vertex dimensions, its ``HessianPattern``)] of every association
+    update of the run."""
     kept = []
     original = drivebot_association.hessian_factors
 
     def recording(graph):
         free = sorted((v.hessian_index, type(v).dimension) for v in graph.vertices() if v.hessian_index is not None)
         data = graph._current_linear_system("association_factorisation").hessian_data
-        upper = graph._structure.pattern.upper(data).copy()        # the optimiser's pattern, whole blocks
-        kept.append((upper, np.array([s for s, _ in free]), np.array([d for _, d in free])))
+        pattern = graph._structure.pattern                          # the optimiser's pattern, whole blocks
+        kept.append((pattern.upper(data).copy(), np.array([s for s, _ in free]), np.array([d for _, d in free]),
+                     pattern))
         return original(graph)
 
     drivebot_association.hessian_factors = recording
@@ -89,17 +92,20 @@ def block_ordering(upper, starts, dims):
     return np.repeat(starts[order] - first, lengths) + np.arange(n)
 
 
-def cholmod_factor(upper, perm):
-    n = upper.shape[0]
-    cols = np.repeat(np.arange(n, dtype=np.int64), np.diff(upper.indptr))
-    matrix = cvxopt.spmatrix(cvxopt.matrix(upper.data), cvxopt.matrix(upper.indices.astype(np.int64), tc="i"),
-                             cvxopt.matrix(cols, tc="i"), (n, n))
+def cholmod_factor(pattern, upper, perm):
+    """nnz of the strictly lower L (CHOLMOD stores D on its diagonal) of H = ``upper`` on ``pattern``."""
+    matrix = cholmod_backend.pattern_matrix(pattern, upper.data)
+    saved = dict(cholmod.options)
     cholmod.options.clear()
     cholmod.options.update({"supernodal": 0, "nmethods": 1, "postorder": False})
-    factor = cholmod.symbolic(matrix, p=cvxopt.matrix(perm, tc="i"), uplo="U")
-    cholmod.numeric(matrix, factor)
-    colptr, rows, values = cholmod.getfactor(factor).CCS
-    return len(np.asarray(values)) - n                    # strictly lower entries (D is on the diagonal)
+    try:
+        factor = cholmod.symbolic(matrix, p=cvxopt.matrix(perm, tc="i"), uplo="U")
+        cholmod.numeric(matrix, factor)
+        values = cholmod.getfactor(factor).CCS[2]
+    finally:
+        cholmod.options.clear()
+        cholmod.options.update(saved)
+    return len(np.asarray(values)) - pattern.n
 
 
 def superlu_factor(upper, perm):
@@ -133,7 +139,7 @@ def main():
     totals = dict.fromkeys(("qdldl build", "qdldl build, explicit zeros removed", "qdldl numeric", "block ordering",
                             "CHOLMOD, that order", "SuperLU, that order"), 0.0)
     fill = {}
-    for upper, starts, dims in kept:
+    for upper, starts, dims, pattern in kept:
         solver = qdldl.Solver(upper, upper=True)
         perm = block_ordering(upper, starts, dims)
         stripped = upper.copy()
@@ -142,7 +148,7 @@ def main():
                     "qdldl build, explicit zeros removed": lambda: qdldl.Solver(stripped, upper=True),
                     "qdldl numeric": lambda: solver.update(upper, upper=True),
                     "block ordering": lambda: block_ordering(upper, starts, dims),
-                    "CHOLMOD, that order": lambda: fill.__setitem__("CHOLMOD", cholmod_factor(upper, perm)),
+                    "CHOLMOD, that order": lambda: fill.__setitem__("CHOLMOD", cholmod_factor(pattern, upper, perm)),
                     "SuperLU, that order": lambda: fill.__setitem__("SuperLU", superlu_factor(upper, perm))}
         for name, run in variants.items():
             totals[name] += best_time(run, args.rounds)

@@ -211,6 +211,7 @@ def main():
     ap.add_argument("--seeds", default="0,1,2,3,4")
     args = ap.parse_args()
     sections = args.sections.split(",")
+    seeds = [int(s) for s in args.seeds.split(",")]
     print(f"## Online SLAM with data association (issue 15), {datetime.date.today().isoformat()}")
     print(f"\nCommand: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/online_slam.py {' '.join(sys.argv[1:])}`; "
           f"load average at start {os.getloadavg()[0]:.1f}.")
@@ -219,13 +220,13 @@ def main():
     if "timing" in sections:
         timing(args.repeats)
     if "nn" in sections:
-        nn_seeds([int(s) for s in args.seeds.split(",")])
+        nn_seeds(seeds)
     if "vp" in sections:
         victoria_park()
     if "vpnoise" in sections:
         victoria_park_noise()
     if "period" in sections:
-        association_periods([int(s) for s in args.seeds.split(",")])
+        association_periods(seeds)
 
 
 if __name__ == "__main__":
