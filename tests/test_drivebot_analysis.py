@@ -69,7 +69,10 @@ def test_plot_covariance_ellipses_draws_the_ellipses_of_the_inputs():
     # full axes 2·√(λ χ²₂): diag(4, 1) → 4s × 2s; eigenvalues of the correlated block 1.9 and 0.1 at 45°
     np.testing.assert_allclose(coll.get_widths(), 2 * s * np.sqrt([1.0, 4.0, 1.9]))
     np.testing.assert_allclose(coll.get_heights(), 2 * s * np.sqrt([1.0, 1.0, 0.1]))
-    np.testing.assert_allclose(np.mod(coll.get_angles()[1:], 180.0), [0.0, 45.0], atol=1e-9)   # degrees
+    # degrees, modulo 180 (an axis has no sign); 0° sits on the cut of mod 180 (−1e-16° would read 180°), so the
+    # difference is folded into [−90°, 90°) instead
+    diff = np.mod(coll.get_angles()[1:] - [0.0, 45.0] + 90.0, 180.0) - 90.0
+    np.testing.assert_allclose(diff, 0.0, atol=1e-9)
     with pytest.raises(ValueError, match="means"):
         an.plot_covariance_ellipses(ax, [[0, 0]], np.array([np.eye(2), np.eye(2)]))
     plt.close(fig)
