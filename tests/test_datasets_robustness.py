@@ -402,7 +402,9 @@ BASES = {  # small valid files: hand-made ones and pieces of the shipped dataset
     "victoria_park": ("vp", _subgraph("victoria_park", 30)), "w100_30": ("g2o", _subgraph("w100_30", 12)),
     "cityTrees": ("g2o", _subgraph("cityTrees_reduced_1k", 25)), "pose2example": ("g2o", _subgraph("pose2example", 8)),
 }
-FAST = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# derandomize: the same 200 examples on every run and machine (a property test must not pass or fail by the
+# luck of its random draw)
+FAST = settings(max_examples=200, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 
 
 @pytest.fixture(scope="module")
