@@ -118,10 +118,15 @@ def test_pooled_observations_of_an_unmapped_landmark_become_one():
     a_obs = [o for t in a_tracks for o in t.observations]
     assert (w.fe.observation_assignment()[a_obs] == new.key).all()
     w.move()
-    w.scan()
+    # A is left out of this scan: the new landmark becomes a candidate only at the next refresh, and an observation of
+    # A before it would start a tentative duplicate at the same place. Both would then predict A's observation to
+    # round-off (D² ≈ 1e-28 each), and which one JCBB pairs it with would be luck (the tentative one: rejected as
+    # ambiguous, and A untracked).
+    w.scan(drop=[0])
     w.optimise()
     out = w.scan()                            # tracked like any other landmark after the next refresh
-    assert new.key in out.labels.tolist()
+    assert new.key in out.candidates and all(w.fe.tracks[k].status == "confirmed" for k in out.candidates)
+    assert new.key in out.labels.tolist() and out.new == []
 
 
 def test_late_association_is_off_by_default_and_checks_its_parameters():

@@ -242,6 +242,12 @@ def test_compiled_footprint_and_density_equal_their_numpy_references(fov):
         k = int(rng.integers(0, 30))
         x, points = rng.normal(size=3) * [5.0, 5.0, 3.0], rng.normal(size=(k, 2)) * 8.0
         widen = (abs(rng.normal()), 0.2 * abs(rng.normal()))
+        # the two paths decide r ≤ r_max + dr and |β| ≤ fov/2 + db with their own round-off: no point of these draws
+        # lies within 1e-9 of the footprint's edge (the closest is 6e-4 away), so the decisions are not a coin flip
+        q = points - x[:2]
+        beta = np.abs(np.angle(np.exp(1j * (np.arctan2(q[:, 1], q[:, 0]) - x[2]))))
+        assert np.all(np.abs(np.hypot(q[:, 0], q[:, 1]) - (10.0 + widen[0])) > 1e-9)
+        assert fov == 2 * math.pi or np.all(np.abs(beta - (0.5 * fov + widen[1])) > 1e-9)
         assert np.array_equal(model.candidates(x, points, widen), model.footprint_reference(x, points, widen))
         k = max(k // 3, 1)
         A = rng.normal(size=(3 + 2 * k, 3 + 2 * k))
@@ -253,6 +259,8 @@ def test_compiled_footprint_and_density_equal_their_numpy_references(fov):
             np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
         C, Rk = got[1], got[2]
         blocks = C.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :] - Rk
+        # bit for bit by construction: the kernel does largest_sd's IEEE operations in the same order (no fastmath,
+        # so no FMA contraction or reassociation), and sqrt is correctly rounded on both paths
         assert np.array_equal(block_largest_sd(C, Rk), largest_sd(blocks))
     polar = RangeBearingModel(10.0, association_space="polar")        # no kernel: the reference itself
     got = polar.scan_density(x, means, sig_v, R_obs)
