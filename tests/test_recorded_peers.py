@@ -94,13 +94,61 @@ def peer_runs():
     return module
 
 
+#: How closely a live peer run can repeat a recorded one on another CPU. A one-ulp change (1e-15 relative) of the
+#: initial estimates, standing in for another CPU's round-off, moves GTSAM's χ² history on W10000 by up to 9.5e-5
+#: relative at iterations 2–4 (the first LM steps amplify it) and its converged end by at most 3.1e-10; on Victoria
+#: Park and the small datasets by at most 1.9e-8 and 5.5e-9 (measured with GTSAM 4.3.0; one AMD Zen machine without
+#: AVX-512 gave 8.9e-6 on W10000's history). The history is compared at 10× the largest of these, the end at 30×:
+#: each recorded iteration changes χ² by ≥ 1e-4 relative until the last, so a run of another algorithm or setting
+#: still fails.
+HISTORY_RTOL = 1e-3
+END_RTOL = 1e-8
+#: an iteration count is compared only where the recording's stopping decision has this margin (GTSAM stops when
+#: the decrease of ½χ² is ≤ 1e-5 relative or absolute): round-off moves the last decreases by < 0.1 %
+STOP_MARGIN = 1.1
+
+
+def gtsam_stop_scores(history, relative_tolerance=1e-5, absolute_tolerance=1e-5):
+    """Per iteration of a recorded GTSAM run, min(relative decrease / its tolerance, absolute decrease / its
+    tolerance) of ½χ² (GTSAM's error): GTSAM stops at the first iteration whose score is ≤ 1."""
+    error = np.asarray(history, dtype=float) / 2
+    decrease = error[:-1] - error[1:]
+    return np.minimum(decrease / error[:-1] / relative_tolerance, decrease / absolute_tolerance)
+
+
+def assert_repeats_the_recording(live_history, live_iterations, recorded, stop_decided_by_round_off=False):
+    """A live peer run equals its recording to the tolerances round-off allows (HISTORY_RTOL, END_RTOL); the
+    iteration counts are equal where the recording stopped with margin (``stop_decided_by_round_off``: a run to
+    round-off, whose last decreases are at the level of the ulp, is compared on its common iterations only)."""
+    recorded_history = np.asarray(recorded["chi2_history"], dtype=float)
+    live_history = np.asarray(live_history, dtype=float)
+    assert live_history[-1] == pytest.approx(recorded_history[-1], rel=END_RTOL)
+    n = min(len(live_history), len(recorded_history))
+    np.testing.assert_allclose(live_history[:n], recorded_history[:n], rtol=HISTORY_RTOL)
+    if not stop_decided_by_round_off:
+        scores = gtsam_stop_scores(recorded_history)
+        assert scores[-1] <= 1 / STOP_MARGIN and (scores[:-1] >= STOP_MARGIN).all(), scores
+        assert live_iterations == recorded["iterations"]
+
+
+def test_recorded_gtsam_runs_stop_with_a_margin():
+    """The premise of comparing iteration counts: every recorded GTSAM run with default tolerances that a live run
+    repeats stopped at an iteration whose decrease was ≥ 10 % below the threshold (Victoria Park's: a zero
+    decrease, no λ ≤ 1e5 lowers χ²), after iterations ≥ 10 % above it."""
+    rec = load_recorded_peers()
+    runs = [rec[name]["GTSAM"] for name in ("w10000", "victoria_park")]
+    runs += [recorded_convergence(name, "GTSAM") for name in LIVE_CONVERGENCE]
+    for run in runs:
+        scores = gtsam_stop_scores(run["chi2_history"])
+        assert scores[-1] <= 1 / STOP_MARGIN and (scores[:-1] >= STOP_MARGIN).all(), scores
+
+
 def test_live_gtsam_matches_the_recording(peer_runs):
     pytest.importorskip("gtsam", reason="GTSAM is an optional peer (environment-peers.txt; no Windows wheel)")
     rec = load_recorded_peers()
     for name in ("w10000", "victoria_park"):
         live = peer_runs.run_gtsam(name, marginal_every=0)
-        assert live["iters"] == rec[name]["GTSAM"]["iterations"]
-        np.testing.assert_allclose(live["hist"], rec[name]["GTSAM"]["chi2_history"], rtol=1e-6)
+        assert_repeats_the_recording(live["hist"], live["iters"], rec[name]["GTSAM"])
 
 
 def test_live_gtsam_marginals_match_the_recording(peer_runs):
@@ -117,8 +165,8 @@ def test_live_gtsam_marginals_match_the_recording(peer_runs):
 def test_live_g2o_matches_the_recording(peer_runs):
     pytest.importorskip("g2opy", reason="g2o's Python bindings are an optional peer (environment-peers.txt)")
     rec = load_recorded_peers()["w10000"]["g2o"]
-    live = peer_runs.run_g2o("w10000", iters=rec["iterations"], marginals=False)
-    np.testing.assert_allclose(live["hist"], rec["chi2_history"], rtol=1e-6)
+    live = peer_runs.run_g2o("w10000", iters=rec["iterations"], marginals=False)   # a fixed number of iterations
+    assert_repeats_the_recording(live["hist"], rec["iterations"], rec, stop_decided_by_round_off=True)
 
 
 @pytest.fixture(scope="module")
@@ -136,6 +184,7 @@ def test_live_gtsam_matches_the_convergence_recording(recorder, name):
             "GTSAM optimum": recorder.gtsam_lm(problem, "", recorder.OPTIMUM_TOLERANCE,
                                                recorder.OPTIMUM_MAX_ITERATIONS)}
     for run, r in live.items():
-        rec = recorded_convergence(name, run)
-        assert r["iterations"] == rec["iterations"]
-        np.testing.assert_allclose(r["chi2_history"], rec["chi2_history"], rtol=1e-6)
+        # the run to the optimum stops when a decrease is below 1e-15 relative: a round-off event, so its
+        # iteration count varies between CPUs (a one-ulp change of the start moves it by up to 4 on these datasets)
+        assert_repeats_the_recording(r["chi2_history"], r["iterations"], recorded_convergence(name, run),
+                                     stop_decided_by_round_off=(run == "GTSAM optimum"))
