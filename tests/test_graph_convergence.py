@@ -82,7 +82,10 @@ def test_additive_poses_take_the_exponential_map_iterates(name):
     exp_map = datasets.load_dataset(name, pose_class=VertexSE2Exp)
     additive.optimize()
     exp_map.optimize()
-    np.testing.assert_allclose(additive.chi2_history, exp_map.chi2_history, rtol=1e-9)
+    # The same iterates up to round-off, which the long first steps amplify: on "example" χ² after iteration 1 moves
+    # by up to 9e−10 (relative) when the initial estimate moves by one ulp; the converged ends agree to 1e−15. Without
+    # the arcs the histories differ by 0.35 (example) and 1.1 (w100) at iteration 1.
+    np.testing.assert_allclose(additive.chi2_history, exp_map.chi2_history, rtol=1e-7)
     plain = datasets.load_dataset(name)
     plain.optimize(algorithm=DefaultParams(exp_map_poses=False))
     assert plain.chi2() == pytest.approx(additive.chi2(), rel=1e-6)        # same optimum, another path
