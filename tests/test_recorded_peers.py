@@ -143,6 +143,7 @@ def test_recorded_gtsam_runs_stop_with_a_margin():
         assert scores[-1] <= 1 / STOP_MARGIN and (scores[:-1] >= STOP_MARGIN).all(), scores
 
 
+@pytest.mark.cpu_independent  # GTSAM and g2o are compiled: numpy's and numba's CPU settings do not reach them
 def test_live_gtsam_matches_the_recording(peer_runs):
     pytest.importorskip("gtsam", reason="GTSAM is an optional peer (environment-peers.txt; no Windows wheel)")
     rec = load_recorded_peers()
@@ -151,6 +152,7 @@ def test_live_gtsam_matches_the_recording(peer_runs):
         assert_repeats_the_recording(live["hist"], live["iters"], rec[name]["GTSAM"])
 
 
+@pytest.mark.cpu_independent  # GTSAM and g2o are compiled: numpy's and numba's CPU settings do not reach them
 def test_live_gtsam_marginals_match_the_recording(peer_runs):
     pytest.importorskip("gtsam", reason="GTSAM is an optional peer (environment-peers.txt; no Windows wheel)")
     state = load_victoria_park_marginals()
@@ -162,6 +164,7 @@ def test_live_gtsam_marginals_match_the_recording(peer_runs):
                                rtol=1e-6, atol=1e-12)
 
 
+@pytest.mark.cpu_independent  # GTSAM and g2o are compiled: numpy's and numba's CPU settings do not reach them
 def test_live_g2o_matches_the_recording(peer_runs):
     pytest.importorskip("g2opy", reason="g2o's Python bindings are an optional peer (environment-peers.txt)")
     rec = load_recorded_peers()["w10000"]["g2o"]
@@ -176,6 +179,7 @@ def recorder():
     return record_peers
 
 
+@pytest.mark.cpu_independent
 @pytest.mark.parametrize("name", LIVE_CONVERGENCE)
 def test_live_gtsam_matches_the_convergence_recording(recorder, name):
     pytest.importorskip("gtsam", reason="GTSAM is an optional peer (environment-peers.txt; no Windows wheel)")
