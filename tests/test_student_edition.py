@@ -249,6 +249,7 @@ def real_edition(tmp_path_factory):
     return student.build(tmp_path_factory.mktemp("edition") / "student", quiet=True)   # raises if the self-check fails
 
 
+@pytest.mark.cpu_independent  # the builder's text and the stubs' exceptions: no float reaches the result
 def test_the_real_registry_builds_a_clean_student_edition(real_edition):
     reg = student.load_registry()
     assert len(reg["exercise"]) >= 14
@@ -274,6 +275,7 @@ def _body_of(text):
     return "\n".join(ast.dump(s) for s in ast.parse(source).body[0].body)
 
 
+@pytest.mark.cpu_independent  # the builder's text and the stubs' exceptions: no float reaches the result
 def test_every_fast_path_is_the_rewrite_in_the_student_edition(real_edition):
     reg = student.load_registry()
     rewrites = reg["edition"]["rewrite"]
@@ -294,6 +296,7 @@ def test_every_fast_path_is_the_rewrite_in_the_student_edition(real_edition):
         assert entry["exercise"] in {ex["name"] for ex in reg["exercise"]} and entry["why"], entry["target"]
 
 
+@pytest.mark.cpu_independent  # the builder's text and the stubs' exceptions: no float reaches the result
 def test_no_line_of_a_fast_path_remains_in_the_student_edition(real_edition):
     reg = student.load_registry()
     leaks = student.fast_path_lines(ROOT, reg)
@@ -337,6 +340,7 @@ STOPS = """
 """
 
 
+@pytest.mark.cpu_independent  # the builder's text and the stubs' exceptions: no float reaches the result
 def test_fast_paths_stop_at_the_exercise_in_a_fresh_student_edition(real_edition):
     out = _run_in(real_edition, STOPS)
     assert out["jcbb"] == out["jcbb_trace"] == "l09_jcbb"

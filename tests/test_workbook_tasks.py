@@ -78,3 +78,42 @@ def test_only_notebooks_whose_kernel_did_not_start_run_again(tmp_path):
     assert workbook.kernel_start_failures(tmp_path / "missing.xml", notebooks) is None
     report = _report(tmp_path, [("09_other.ipynb", 0, died)])
     assert workbook.kernel_start_failures(report, notebooks) is None          # not one of the notebooks run
+
+
+def _recorded_unit_run(monkeypatch, ci, machine="x86_64"):
+    """The pytest commands and environments ``test_unit`` runs (nothing is run)."""
+    calls = []
+    monkeypatch.setattr(workbook, "setup", lambda: None)
+    monkeypatch.setattr(workbook, "STUDENT_EDITION", False)
+    monkeypatch.setattr(workbook.platform, "machine", lambda: machine)
+    monkeypatch.setenv("CI", "true" if ci else "")
+    monkeypatch.setenv("WORKBOOK_JOBS", "2")
+    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "NPY_DISABLE_CPU_FEATURES", "NUMBA_CPU_NAME"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setattr(workbook, "run", lambda cmd, env=None, check=True: calls.append(([str(c) for c in cmd], env)))
+    workbook.test_unit()
+    return calls
+
+
+def test_ci_runs_the_unit_tests_again_on_each_lowered_cpu(monkeypatch):
+    calls = _recorded_unit_run(monkeypatch, ci=True)
+    assert len(calls) == 1 + len(workbook.CPU_PASSES)
+    first, lowered = calls[0], calls[1:]
+    assert "not cpu_independent" not in first[0] and "NPY_DISABLE_CPU_FEATURES" not in first[1]   # all, as the CPU is
+    for (cmd, env), (_, variables) in zip(lowered, workbook.CPU_PASSES, strict=True):
+        assert cmd[cmd.index("-m", 3) + 1] == "not cpu_independent" and cmd[-1] == "tests"
+        assert {k: env[k] for k in variables} == variables and env["OPENBLAS_NUM_THREADS"] == "1"
+        assert cmd[cmd.index("-W") + 1] == "error" and cmd[cmd.index("-n") + 1] == "2"
+    assert lowered[-1][1]["NUMBA_CPU_NAME"] == "generic"
+    assert "X86_V3" in lowered[-1][1]["NPY_DISABLE_CPU_FEATURES"]
+
+
+def test_without_ci_or_off_x86_the_unit_tests_run_once(monkeypatch, capsys):
+    assert len(_recorded_unit_run(monkeypatch, ci=False)) == 1
+    assert len(_recorded_unit_run(monkeypatch, ci=True, machine="arm64")) == 1
+    assert "only defined for x86-64, skipped on arm64" in capsys.readouterr().out
+
+
+def test_the_marker_of_the_left_out_tests_is_registered():
+    text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    assert '"%s: ' % workbook.CPU_INDEPENDENT in text
