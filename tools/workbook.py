@@ -46,8 +46,8 @@ NB_TIMEOUT = int(os.environ.get("NB_TIMEOUT", "600"))
 # The CI passes on a lowered CPU (x86-64 only): numpy's dispatch groups switched off (numpy 2.4's names), and in the
 # lowest pass numba compiling for a generic x86-64 (no AVX, no FMA); each pass also gets one BLAS thread.
 CPU_PASSES = (("AVX-512 off", {"NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR"}),
-              ("AVX-512 and AVX2 off, numba generic", {"NPY_DISABLE_CPU_FEATURES": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR",
-                                                       "NUMBA_CPU_NAME": "generic"}))
+              ("AVX-512 and AVX2 off, numba generic",
+               {"NPY_DISABLE_CPU_FEATURES": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR", "NUMBA_CPU_NAME": "generic"}))
 #: the unit tests left out of the lowered-CPU passes: marked so because no setting of those passes reaches their
 #: results (text processing of the source tree, the compiled peer libraries GTSAM and g2o)
 CPU_INDEPENDENT = "cpu_independent"
@@ -273,8 +273,8 @@ def test_unit():
 
 def unit_tests(env=None, select=()):
     workers = parallel_args()
-    run([venv_python(), "-m", "pytest", "-W", "error", "-q"] + list(select) + workers
-        + ["tests"], env=tool_env(worker_env(workers, env)))
+    run([venv_python(), "-m", "pytest", "-W", "error", "-q"] + list(select) + workers + ["tests"],
+        env=tool_env(worker_env(workers, env)))
 
 
 def test_notebooks():
