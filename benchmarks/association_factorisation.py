@@ -2,8 +2,8 @@
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/association_factorisation.py [--seed 0] [--every 1]
 
-A q2_e run with JCBB (``run_question("q2_e", data_association="jcbb")``) updates the graph every 100 ticks for the
-front-end (``helpers.drivebot.association``): one factorisation of the undamped H at the current estimates, for a
+A q2_e run with JCBB (``run_hidden_ids("q2_e", data_association="jcbb")``) updates the graph every 100 ticks for the
+front-end (``helpers.advanced.hidden_ids``): one factorisation of the undamped H at the current estimates, for a
 pattern that has grown since the last update. The run is made once; every matrix the update factorises is kept
 (the upper triangle on the optimiser's own pattern, and the first row and dimension of every free vertex). The
 pattern matters: it stores every vertex block whole (the zeros of a block included), so the columns of a vertex
@@ -45,9 +45,8 @@ try:
 except ImportError:
     sys.exit("benchmarks/association_factorisation.py needs cvxopt (pip install cvxopt)")
 
-import helpers.drivebot.association as drivebot_association
+import helpers.advanced.hidden_ids as drivebot_association
 from helpers.graph import cholmod_backend
-from helpers.drivebot.runner import run_question
 
 
 def capture(seed):
@@ -66,7 +65,7 @@ def capture(seed):
 
     drivebot_association.hessian_factors = recording
     try:
-        run_question("q2_e", data_association="jcbb", seed=seed)
+        drivebot_association.run_hidden_ids("q2_e", data_association="jcbb", seed=seed)
     finally:
         drivebot_association.hessian_factors = original
     return kept

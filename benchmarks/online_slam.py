@@ -6,7 +6,7 @@
 Sections (each prints a markdown table):
 
 - ``targets``: DriveBot q2_b and q2_e, seed 0, clutter 0 and 2 per scan, every algorithm ("nn", "mahalanobis",
-  "ml", "jcbb") through ``helpers.drivebot.run_question(..., data_association=...)``: precision, recall, landmarks
+  "ml", "jcbb") through ``helpers.advanced.hidden_ids.run_hidden_ids(..., data_association=...)``: precision, recall, landmarks
   created / true, map RMSE after matching, final χ², time. Targets: JCBB precision ≥ 0.99 and recall ≥ 0.95 without
   clutter, precision ≥ 0.98 with 2 per scan.
 - ``timing``: the same runs with ids given and with "jcbb" (q2_b and q2_e, seed 0, no clutter), alternated
@@ -43,10 +43,10 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from helpers.drivebot import run_question  # noqa: E402
+from helpers.advanced.hidden_ids import association_report, run_hidden_ids  # noqa: E402
 from helpers.gaussian import chi2inv  # noqa: E402
 from helpers.graph import EdgeRangeBearing  # noqa: E402
-from helpers.online_slam.victoria_park import VICTORIA_PARK_RULES, run_victoria_park  # noqa: E402
+from helpers.advanced.online_slam.victoria_park import VICTORIA_PARK_RULES, run_victoria_park  # noqa: E402
 
 ALGORITHMS = ("nn", "mahalanobis", "ml", "jcbb")
 
@@ -74,8 +74,8 @@ def targets():
     for q in ("q2_b", "q2_e"):
         for clutter in (0.0, 2.0):
             for alg in ALGORITHMS:
-                res, wall, cpu = _timed(run_question, q, data_association=alg, clutter_rate=clutter, seed=0)
-                r = res.association_report()
+                res, wall, cpu = _timed(run_hidden_ids, q, data_association=alg, clutter_rate=clutter, seed=0)
+                r = association_report(res)
                 print(_row([q, f"{clutter:g}", alg, f"{r['precision']:.4f}", f"{r['recall']:.4f}",
                             f"{r['n_landmarks']} ({r['n_true_landmarks']})", f"{r['map_rmse']:.3f}",
                             f"{r['final_chi2']:.0f}", f"{wall:.1f}", f"{cpu:.1f}"]), flush=True)
@@ -91,7 +91,7 @@ def timing(repeats):
         parts = None
         for _ in range(repeats):
             for alg in (None, "jcbb"):
-                res, wall, cpu = _timed(run_question, q, data_association=alg, seed=0)
+                res, wall, cpu = _timed(run_hidden_ids, q, data_association=alg, seed=0)
                 best[alg] = [min(best[alg][0], wall), min(best[alg][1], cpu)]
                 if alg:
                     st = res.system.frontend.stats
@@ -102,8 +102,8 @@ def timing(repeats):
 
 
 def association_periods(seeds):
-    from helpers.drivebot.association_support import run_summary
-    from helpers.online_slam.frontend import OnlineFrontEnd
+    from helpers.advanced.hidden_ids_support import run_summary
+    from helpers.advanced.online_slam.frontend import OnlineFrontEnd
     relative = []                       # every candidate's relative σ over closure_sigma, scan by scan
     original = OnlineFrontEnd._relative_sigma
 
@@ -122,9 +122,9 @@ def association_periods(seeds):
         for seed in seeds:
             for period in (100, 120, 150, 175, 200, 250):
                 relative.clear()
-                res, wall, _ = _timed(run_question, "q2_e", data_association="jcbb", seed=seed,
+                res, wall, _ = _timed(run_hidden_ids, "q2_e", data_association="jcbb", seed=seed,
                                       association_period=period)
-                r, s, st = res.association_report(), run_summary(res), res.system.frontend.stats
+                r, s, st = association_report(res), run_summary(res), res.system.frontend.stats
                 share = float(np.mean(np.concatenate(relative) > 1.0))
                 print(_row([seed, period, f"{wall:.1f}", f"{r['precision']:.4f}", f"{r['recall']:.4f}",
                             f"{r['n_landmarks']} ({r['n_true_landmarks']})", f"{s['merges']} ({s['wrong_merges']})",
@@ -142,7 +142,7 @@ def nn_seeds(seeds):
         for seed in seeds:
             out = []
             for alg in ("nn", "jcbb"):
-                r = run_question("q2_b", data_association=alg, clutter_rate=clutter, seed=seed).association_report()
+                r = association_report(run_hidden_ids("q2_b", data_association=alg, clutter_rate=clutter, seed=seed))
                 out += [f"{r['precision']:.4f}", f"{r['recall']:.4f}", str(r["n_landmarks"])]
             print(_row([seed, f"{clutter:g}"] + out + [r["n_true_landmarks"]]), flush=True)
 

@@ -1,4 +1,4 @@
-"""Tests for helpers.drivebot.association_support (notebook 22): runs, the recorder, the closure analysis, the
+"""Tests for helpers.advanced.hidden_ids_support (notebook 22): runs, the recorder, the closure analysis, the
 tables and the figures — on short runs (no loop closes in them; the closure analysis is checked on hand-made
 recorder entries)."""
 import copy
@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from helpers.drivebot import association_support as assoc  # noqa: E402
+from helpers.advanced import hidden_ids_support as assoc  # noqa: E402
 from helpers.drivebot import run_question  # noqa: E402
 
 SHORT = {"maximum_step_number": 200}

@@ -6,9 +6,11 @@ import pytest
 
 from helpers.graph import (EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GraphError, NonFiniteError, SparseOptimizer,
                            VertexPointXY, VertexSE2)
-from helpers.graph.chain_factor import ChainFactor, add_slot_terms_reference
-from helpers.graph.chain_kernel import add_slot_terms
-from helpers.graph.incremental import IncrementalSmoother, NotPositiveDefiniteError
+from helpers.advanced.chain_factor import ChainFactor, add_slot_terms_reference
+from helpers.advanced.chain_kernel import add_slot_terms
+from helpers.advanced.drivebot_incremental import run_incremental
+from helpers.advanced.incremental import IncrementalSmoother, NotPositiveDefiniteError
+from helpers.drivebot import run_question
 
 
 def grow(g, rng, poses, points, ticks, new_point=0.3):
@@ -274,10 +276,8 @@ def test_accessors_name_vertices_they_do_not_know():
 
 
 def test_drivebot_every_step_incremental_ends_at_the_batch_optimum():
-    from helpers.drivebot import run_question
     batch = run_question("q2_b", seed=0, maximum_step_number=700)      # past its first loop closure
-    inc = run_question("q2_b", seed=0, optimization_period=1, optimization_algorithm="incremental",
-                       maximum_step_number=700)
+    inc = run_incremental("q2_b", seed=0, optimization_period=1, maximum_step_number=700)
     sm = inc.system._smoother
     assert sm.restarts == 0
     assert np.isfinite(inc.optimization_times).all() and np.median(inc.optimization_iterations) == 1
@@ -286,20 +286,13 @@ def test_drivebot_every_step_incremental_ends_at_the_batch_optimum():
     x_batch = batch.system.landmark_estimates()[0]
     x_inc = inc.system.landmark_estimates()[0]
     assert np.abs(x_batch - x_inc).max() < 0.05
-    every5 = run_question("q2_b", seed=0, optimization_algorithm="incremental",   # the question's period, 5
-                          maximum_step_number=700)
+    every5 = run_incremental("q2_b", seed=0, maximum_step_number=700)   # the question's period, 5
     assert abs(every5.chi2_history[-1] - final[0]) <= 1e-3 * final[0]
 
 
 def test_drivebot_one_final_incremental_update_from_dead_reckoning_converges():
-    from helpers.drivebot import run_question
     batch = run_question("q2_c", seed=0, maximum_step_number=700)    # no optimisation until the end of the run
-    inc = run_question("q2_c", seed=0, optimization_algorithm="incremental", maximum_step_number=700)
+    inc = run_incremental("q2_c", seed=0, maximum_step_number=700)
     assert inc.optimization_iterations[-1] > 1                 # several solves in that one update
     assert abs(inc.final_chi2 - batch.final_chi2) <= 1e-3 * batch.final_chi2
 
-
-def test_drivebot_incremental_with_data_association_is_refused():
-    from helpers.drivebot import run_question
-    with pytest.raises(ValueError, match="'incremental' cannot be combined with data association"):
-        run_question("q2_b", seed=0, optimization_algorithm="incremental", data_association="jcbb")

@@ -1,4 +1,4 @@
-"""Late association (``helpers.online_slam.late``): the innovation test against finite differences, the group test
+"""Late association (``helpers.advanced.online_slam.late``): the innovation test against finite differences, the group test
 on hand-made points, a dropped observation paired after a later optimisation, an unmapped landmark made from the
 pool, and bad input."""
 import math
@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from helpers.online_slam import ConfirmationRules, RangeBearingModel
-from helpers.online_slam.late import group_test, innovation_d2
+from helpers.advanced.online_slam import ConfirmationRules, RangeBearingModel
+from helpers.advanced.online_slam.late import group_test, innovation_d2
 
 from test_online_slam import R, World
 

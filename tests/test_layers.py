@@ -97,3 +97,22 @@ def test_graph_depends_only_on_itself_and_the_bottom_layer():
 def test_bottom_layer_imports_only_the_bottom_layer():
     for m in BOTTOM:
         assert GRAPH[m] <= BOTTOM, (m, GRAPH[m])
+
+
+def test_only_the_advanced_part_imports_the_advanced_part():
+    users = sorted(m for m, deps in GRAPH.items() if not m.startswith("helpers.advanced")
+                   and any(d.startswith("helpers.advanced") for d in deps))
+    assert users == [], f"course modules importing helpers.advanced: {users}"
+
+
+def test_the_course_path_never_reaches_the_advanced_part():
+    """The course path (tools/course_path.py: what notebooks 00–21 and the exercises import, and everything that
+    imports) holds no module of helpers.advanced."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("course_path", ROOT.parent / "tools" / "course_path.py")
+    course_path = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(course_path)
+    roots = set().union(*(course_path.notebook_imports(p) for p in course_path.COURSE_NOTEBOOKS))
+    course = course_path.closure(roots | course_path.exercise_modules())
+    assert len(course) > 40 and "helpers.graph" in course
+    assert sorted(m for m in course if m.startswith("helpers.advanced")) == []

@@ -1,4 +1,4 @@
-"""Merge verification with undo (``helpers.online_slam.verification``) on a hand-made out-and-back drive.
+"""Merge verification with undo (``helpers.advanced.online_slam.verification``) on a hand-made out-and-back drive.
 
 The robot drives along x past one landmark, scanning it three times (it is confirmed), drives on without scanning,
 then backs up and scans the same place three times. ``closure_sigma`` is tiny, so on the way back the landmark is
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from helpers.graph import EdgeSE2, SparseOptimizer, VertexSE2
-from helpers.online_slam import ConfirmationRules, OnlineFrontEnd, RangeBearingModel
-from helpers.online_slam.tracks import CONFIRMED
-from helpers.online_slam.verification import split_statistic
+from helpers.advanced.online_slam import ConfirmationRules, OnlineFrontEnd, RangeBearingModel
+from helpers.advanced.online_slam.tracks import CONFIRMED
+from helpers.advanced.online_slam.verification import split_statistic
 
 R = np.diag([0.05, 0.01]) ** 2
 ODO_INFO = np.linalg.inv(np.diag([0.002, 0.002, 0.0005]) ** 2)
@@ -161,9 +161,9 @@ def test_bad_verification_options_name_the_argument(name, value):
 
 
 def test_the_pipelines_pass_the_verification_options_on():
-    from helpers.drivebot import run_question
-    from helpers.online_slam import run_victoria_park
+    from helpers.advanced.hidden_ids import run_hidden_ids
+    from helpers.advanced.online_slam import run_victoria_park
     with pytest.raises(ValueError, match="verify_n_sigma"):
         run_victoria_park("jcbb", verify_n_sigma=-1.0, known_id_reference=False)
     with pytest.raises(ValueError, match="verify_merges"):
-        run_question("q2_b", data_association="jcbb", verify_merges="yes")
+        run_hidden_ids("q2_b", data_association="jcbb", verify_merges="yes")

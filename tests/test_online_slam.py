@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from helpers.graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
-from helpers.online_slam import (ALGORITHMS, ConfirmationRules, OnlineFrontEnd, RangeBearingModel,
+from helpers.advanced.online_slam import (ALGORITHMS, ConfirmationRules, OnlineFrontEnd, RangeBearingModel,
                                  association_scores, best_matching)
-from helpers.online_slam.covariance import MarginalColumns, hessian_factors, ldl_solve_columns
-from helpers.online_slam.metrics import map_errors
-from helpers.online_slam.models import motion_jacobians, unwrap_bearings
-from helpers.online_slam.decisions import largest_sd
-from helpers.online_slam.scan_kernels import block_largest_sd
-from helpers.online_slam.window import LocalWindow
+from helpers.advanced.online_slam.covariance import MarginalColumns, hessian_factors, ldl_solve_columns
+from helpers.advanced.online_slam.metrics import map_errors
+from helpers.advanced.online_slam.models import motion_jacobians, unwrap_bearings
+from helpers.advanced.online_slam.decisions import largest_sd
+from helpers.advanced.online_slam.scan_kernels import block_largest_sd
+from helpers.advanced.online_slam.window import LocalWindow
 
 R = np.diag([0.05, 0.01]) ** 2
 ODO_INFO = np.linalg.inv(np.diag([0.02, 0.02, 0.005]) ** 2)
@@ -127,7 +127,7 @@ def test_columns_on_the_ancestor_closure_equal_the_full_sweep(seed):
     import qdldl
     import scipy.sparse as sp
 
-    from helpers.online_slam.covariance import _ancestor_closure, _solve_unit_columns_on
+    from helpers.advanced.online_slam.covariance import _ancestor_closure, _solve_unit_columns_on
 
     rng = np.random.default_rng(seed)
     n = 60
@@ -435,7 +435,7 @@ def test_bad_input_names_the_argument():
 
 
 def test_relative_sigma_from_the_density_equals_the_state_form():
-    from helpers.online_slam.decisions import relative_sigma
+    from helpers.advanced.online_slam.decisions import relative_sigma
     w = World(LANDMARKS, "jcbb")
     checked = 0
     for k in range(12):
@@ -455,7 +455,7 @@ def test_relative_sigma_from_the_density_equals_the_state_form():
 
 
 def test_largest_sd_is_the_root_of_the_largest_eigenvalue_and_rejects_bad_shapes():
-    from helpers.online_slam.decisions import largest_sd
+    from helpers.advanced.online_slam.decisions import largest_sd
     A = np.random.default_rng(2).normal(size=(6, 2, 2))
     P = A @ A.transpose(0, 2, 1)
     np.testing.assert_allclose(largest_sd(P), np.sqrt(np.linalg.eigvalsh(P)[:, -1]), rtol=1e-12)

@@ -9,8 +9,8 @@ from helpers.drivebot.edges import LandmarkVertex
 from helpers.drivebot.events import Event, EventType
 from helpers.drivebot.runner import run_question
 from helpers.graph import EdgeRangeBearing
-from helpers.drivebot.association import SensorCorruption
-from helpers.online_slam.victoria_park import run_victoria_park, victoria_park_scans
+from helpers.advanced.hidden_ids import SensorCorruption, association_report, run_hidden_ids
+from helpers.advanced.online_slam.victoria_park import run_victoria_park, victoria_park_scans
 
 SHORT = {"maximum_step_number": 300}
 
@@ -27,8 +27,8 @@ def _pairs(system, key_to_id):
 
 def test_noise_free_run_with_ids_hidden_reproduces_the_known_id_graph():
     known = run_question("q2_b", seed=3, perturb_with_noise=False, **SHORT)
-    hidden = run_question("q2_b", data_association="jcbb", seed=3, perturb_with_noise=False, **SHORT)
-    report = hidden.association_report()
+    hidden = run_hidden_ids("q2_b", data_association="jcbb", seed=3, perturb_with_noise=False, **SHORT)
+    report = association_report(hidden)
     assert report["precision"] == 1.0 and report["recall"] == 1.0
     matching = report["matching"]                                    # front-end key → true id
     ids = _pairs(known.system, lambda v: v.landmark_id)
@@ -42,23 +42,24 @@ def test_noise_free_run_with_ids_hidden_reproduces_the_known_id_graph():
 
 def test_ids_given_is_the_coursework_run():
     a = run_question("q2_b", seed=1, **SHORT)
-    b = run_question("q2_b", data_association=None, seed=1, **SHORT)
-    assert a.hidden_ids is None and b.hidden_ids is None
+    b = run_hidden_ids("q2_b", data_association=None, seed=1, **SHORT)
+    assert a.setup is None and b.setup is None
     assert b.final_chi2 == a.final_chi2
     np.testing.assert_array_equal(a.vehicle_state_history, b.vehicle_state_history)
-    rep = b.association_report()
+    rep = association_report(b)
     assert rep["precision"] == 1.0 and rep["n_landmarks"] == rep["n_true_landmarks"]
     assert rep["n_pairings"] == a.graph_statistics()["landmark_edges"]
 
 
 def test_clutter_and_missed_detections_with_jcbb():
-    res = run_question("q2_b", data_association="jcbb", clutter_rate=2.0, detection_probability=0.9, seed=0,
+    res = run_hidden_ids("q2_b", data_association="jcbb", clutter_rate=2.0, detection_probability=0.9, seed=0,
                        maximum_step_number=200)
-    rep = res.association_report()
+    rep = association_report(res)
     assert rep["n_clutter"] > 300 and rep["precision"] >= 0.98 and rep["recall"] >= 0.9
     assert rep["n_matched"] == rep["n_true_landmarks"] and rep["map_rmse"] < 0.5
-    a, b = (run_question("q2_b", data_association="jcbb", clutter_rate=2.0, detection_probability=0.9, seed=4,
-                         maximum_step_number=60).association_report() for _ in range(2))
+    a, b = (association_report(run_hidden_ids("q2_b", data_association="jcbb", clutter_rate=2.0,
+                                              detection_probability=0.9, seed=4, maximum_step_number=60))
+            for _ in range(2))
     assert a["n_pairings"] == b["n_pairings"] and a["n_clutter"] == b["n_clutter"]    # seeded
 
 
@@ -105,24 +106,24 @@ def test_sensor_corruption():
 def test_bad_arguments(kwargs, name):
     args = {"data_association": "jcbb", **kwargs}
     with pytest.raises(ValueError, match=name):
-        run_question("q2_b", **args)
+        run_hidden_ids("q2_b", **args)
 
 
 def test_missed_detections_with_ids_given_thin_the_known_id_scans():
     full = run_question("q2_b", seed=2, **SHORT)
-    thin = run_question("q2_b", data_association=None, detection_probability=0.5, seed=2, **SHORT)
-    assert thin.hidden_ids is not None and not hasattr(thin.system, "frontend")
+    thin = run_hidden_ids("q2_b", data_association=None, detection_probability=0.5, seed=2, **SHORT)
+    assert thin.setup is not None and not hasattr(thin.system, "frontend")
     n_full = full.graph_statistics()["landmark_edges"]
     n_thin = thin.graph_statistics()["landmark_edges"]
     assert 0.35 * n_full < n_thin < 0.65 * n_full
-    rep = thin.association_report()
+    rep = association_report(thin)
     assert rep["precision"] == 1.0 and rep["detection_probability"] == 0.5
     with pytest.raises(ValueError, match="options of the association"):
-        run_question("q2_b", data_association=None, detection_probability=0.5, n_sigma=2.0, **SHORT)
+        run_hidden_ids("q2_b", data_association=None, detection_probability=0.5, n_sigma=2.0, **SHORT)
 
 
 def test_landmark_vertices_are_registered_for_the_estimates():
-    res = run_question("q2_b", data_association="mahalanobis", seed=0, maximum_step_number=150)
+    res = run_hidden_ids("q2_b", data_association="mahalanobis", seed=0, maximum_step_number=150)
     x, P, ids = res.landmark_estimates()
     assert x.shape[1] == len(res.system.frontend.confirmed_tracks()) == ids.size > 0
     assert all(isinstance(res.system.landmark_vertices[i], LandmarkVertex) for i in ids)

@@ -8,8 +8,8 @@ import pytest
 
 from helpers.datasets import read_dataset
 from helpers.graph import VertexPointXY, VertexSE2
-from helpers.online_slam import vp_analysis as va
-from helpers.online_slam.victoria_park import victoria_park_scans
+from helpers.advanced.online_slam import vp_analysis as va
+from helpers.advanced.online_slam.victoria_park import victoria_park_scans
 
 matplotlib.use("Agg")
 
@@ -92,7 +92,7 @@ def test_known_id_nearest_neighbour_counts_every_re_observation():
 
 
 def test_scan_probe_is_for_the_known_id_run_only():
-    from helpers.online_slam import run_victoria_park
+    from helpers.advanced.online_slam import run_victoria_park
     with pytest.raises(ValueError, match="scan_probe"):
         run_victoria_park("jcbb", scan_probe=lambda *a: None)
     with pytest.raises(ValueError, match="scan_probe"):
@@ -100,7 +100,7 @@ def test_scan_probe_is_for_the_known_id_run_only():
 
 
 def test_merge_outcomes_judges_merges_by_majority_id():
-    from helpers.online_slam.tracks import Track
+    from helpers.advanced.online_slam.tracks import Track
     tracks = [Track(key=k, birth=0, parent=None, z0=np.zeros(2), R0=np.eye(2)) for k in range(4)]
     tracks[0].observations, tracks[1].observations = [0, 1, 2], [3, 4]        # 1 merged into 0: right
     tracks[2].observations, tracks[3].observations = [5, 6], [7, 8]           # 3 merged into 2, then undone: wrong

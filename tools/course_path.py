@@ -136,7 +136,7 @@ def main(argv=None) -> int:
     if args.list:
         for m in sorted(course):
             print(f"    {lines(m):5d}  {m}")
-    report("advanced part (the rest of helpers)", set(MODULES) - course)
+    report("advanced part and the rest of helpers", set(MODULES) - course)
     print(f"target: course path ≤ {TARGET_LINES} lines, no module over {MODULE_LINES}, "
           f"no function over {FUNCTION_LINES}")
     missed = (course_report["lines"] > TARGET_LINES or course_report["big"] or course_report["long"])

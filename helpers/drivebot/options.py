@@ -35,8 +35,7 @@ SENSOR_OPTIONS = {
     "enable_compass": ("compass", ("compass_edge", "compass_angular_offset", "compass_measurement_period",
                                    "r_compass")),
     "enable_gps": ("GPS", ("gps_measurement_period", "r_gps", "gps_position_offset")),
-    "enable_laser": ("laser", ("laser_measurement_period", "laser_detection_range", "r_laser", "data_association",
-                               "clutter_rate", "detection_probability")),
+    "enable_laser": ("laser", ("laser_measurement_period", "laser_detection_range", "r_laser")),
 }
 
 
@@ -88,7 +87,7 @@ _OPTION_CHECKS = {
     "keep_first_prediction_edge": lambda system, value: boolean(value, "keep_first_prediction_edge"),
     "pre_optimization_hook": lambda system, value: function(value, "pre_optimization_hook", allow_none=True),
     "optimization_algorithm": lambda system, value: one_of(value, "optimization_algorithm",
-                                                           ("lm", "gn", "lm-gtsam", "incremental")),
+                                                           ("lm", "gn", "lm-gtsam")),
 }
 
 

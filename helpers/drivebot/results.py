@@ -8,7 +8,6 @@ import numpy as np
 from ..gaussian import chi2_interval, confidence_level
 from ..graph import wrap_angle_mod
 from ..validation import positive_number
-from .association import HiddenIds, association_report
 from .config import SimulatorConfiguration
 from .scenarios import Scenario
 from .slam_system import DriveBotSLAMSystem
@@ -49,9 +48,8 @@ class Results:
     run_time: float = field(default=float("nan"))
     #: laser readings the simulator did not report because their noisy range was ≤ 0
     dropped_laser_readings: int = 0
-    #: the set-up of a run with the ids hidden or the sensor corrupted (``association.HiddenIds``; None: the
-    #: coursework's run, ids given)
-    hidden_ids: HiddenIds | None = None
+    #: the ``setup`` the run was given (``run_question``; None: the coursework's run)
+    setup: object = None
 
     @property
     def n_steps(self) -> int:
@@ -74,11 +72,6 @@ class Results:
     def graph_statistics(self) -> dict:
         """Counts by vertex and edge type and the χ² degrees of freedom (see DriveBotSLAMSystem)."""
         return self.system.graph_statistics()
-
-    def association_report(self) -> dict:
-        """The data association of the run against the simulator's truth (``association.association_report``):
-        precision, recall, n_landmarks, n_true_landmarks, map_rmse, … — for any run, ids given or hidden."""
-        return association_report(self)
 
     def landmark_estimates(self):
         """(x 2×L, P 2×2×L, ids) from the final graph."""

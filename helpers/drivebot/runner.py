@@ -47,7 +47,6 @@ from ..graph import GraphError
 from ..timing import timed
 from ..validation import boolean, function, same_setting
 from . import pruning
-from .association import HiddenIds
 from .config import SimulatorConfiguration
 from .options import check_effective
 from .results import Results
@@ -115,17 +114,12 @@ def question_setup(name: str, **overrides):
     return load_scenario(scenario_name), SimulatorConfiguration(**cfg), slam
 
 
-def run_question(name: str, seed=0, progress: bool = False, step_hook=None, data_association: str | None = None,
-                 clutter_rate: float = 0.0, detection_probability: float = 1.0, **overrides) -> Results:
+def run_question(name: str, seed=0, progress: bool = False, step_hook=None, setup=None, **overrides) -> Results:
     """Run a coursework question ("q1_b" … "q3_b") with its settings (module table) and ``overrides``.
 
-    Data association (``association``): ``data_association`` None keeps the coursework (each landmark
-    observation carries its true id); "nn", "mahalanobis", "ml" or "jcbb" hides the ids from the SLAM system,
-    which associates every scan online with that L09 algorithm (the simulator still knows the ids, for
-    ``Results.association_report()``). A harder sensor: ``clutter_rate`` spurious detections per scan (Poisson,
-    uniform in the sensor footprint; needs an algorithm) and ``detection_probability`` (each true detection kept
-    with this probability). The association's own options (``association.ASSOCIATION_OPTIONS``) are accepted as
-    overrides when ``data_association`` is given.
+    ``setup`` (None: the coursework) changes what the loop drives: an object with ``system(config,
+    **slam_options)``, which builds the SLAM system, and ``filter(events, simulator)``, which passes each tick's
+    events to it (the advanced part's runs with the landmark ids hidden use this).
 
     Overrides are SimulatorConfiguration fields (``enable_compass=True``, ``perturb_with_noise=False``, …)
     or SLAM options (``optimization_period``, ``compass_edge``, ``remove_prediction_edges``,
@@ -138,8 +132,8 @@ def run_question(name: str, seed=0, progress: bool = False, step_hook=None, data
     also needs ``enable_odometry=True``, one vehicle vertex per tick, and ``remove_prediction_edges`` needs an
     observation sensor; ``algorithm_options`` are checked against the algorithm). So does an option changed from
     the question's own value that would have no effect (``options.check_effective``): one of a disabled sensor —
-    ``compass_edge`` or ``compass_angular_offset`` without the compass, ``data_association``, ``clutter_rate`` or
-    ``detection_probability`` without the laser, … — or ``keep_first_prediction_edge`` without
+    ``compass_edge`` or ``compass_angular_offset`` without the compass, ``r_laser`` without the laser, … — or
+    ``keep_first_prediction_edge`` without
     ``remove_prediction_edges=True``.
 
     **Failures part-way keep what the run has**: an exception raised by the simulator, the SLAM system or its
@@ -157,14 +151,10 @@ def run_question(name: str, seed=0, progress: bool = False, step_hook=None, data
     A note in the traceback says the same. (An exception object that refuses attributes is wrapped in a
     ``RunError`` raised from it, with the same three attributes.)
     """
-    overrides = dict(overrides)
-    given = {**overrides, "data_association": data_association, "clutter_rate": clutter_rate,
-             "detection_probability": detection_probability}
-    hidden = HiddenIds.from_arguments(data_association, clutter_rate, detection_probability, seed, overrides)
     scenario, config, slam = question_setup(name, **overrides)
-    check_effective(_changed_options(name, given, config), config, slam)
-    return run(config, scenario, seed=seed, progress=progress, question=name, step_hook=step_hook,
-               hidden_ids=hidden, **slam)
+    check_effective(_changed_options(name, overrides, config), config, slam)
+    return run(config, scenario, seed=seed, progress=progress, question=name, step_hook=step_hook, setup=setup,
+               **slam)
 
 
 def _defaults(function_) -> dict:
@@ -190,15 +180,17 @@ def _changed_options(name, given, config) -> dict:
 
 
 def run(config: SimulatorConfiguration, scenario: Scenario, seed=0, progress: bool = False, question: str = "",
-        step_hook=None, hidden_ids: HiddenIds | None = None, **slam_options) -> Results:
-    """The main loop (module docstring) for any configuration and scenario (``step_hook`` and failures part-way:
-    see run_question; ``hidden_ids``: the set-up of a run with the ids hidden, ``association.HiddenIds``)."""
+        step_hook=None, setup=None, **slam_options) -> Results:
+    """The main loop (module docstring) for any configuration and scenario (``step_hook``, ``setup`` and failures
+    part-way: see run_question)."""
     function(step_hook, "step_hook", allow_none=True)
-    if hidden_ids is not None and not isinstance(hidden_ids, HiddenIds):
-        raise ValueError(f"hidden_ids must be an association.HiddenIds or None, got {type(hidden_ids).__name__}")
+    if setup is not None and not (callable(getattr(setup, "system", None))
+                                  and callable(getattr(setup, "filter", None))):
+        raise ValueError(f"setup must have the methods system(config, **slam_options) and filter(events, "
+                         f"simulator), or be None; got {type(setup).__name__}")
     _check_slam_options(slam_options, "run")
     return _main_loop(config, scenario, seed, {"": slam_options}, progress, question, step_hook, catch=False,
-                      hidden=hidden_ids)[""]
+                      setup=setup)[""]
 
 
 def _check_slam_options(options, where):
@@ -237,9 +229,9 @@ def run_variants(name: str, variants: dict, seed=0, progress: bool = False, **ov
     return _main_loop(config, scenario, seed, slams, progress, name, None, catch=True)
 
 
-def _main_loop(config, scenario, seed, slams, progress, question, step_hook, catch, hidden=None):
+def _main_loop(config, scenario, seed, slams, progress, question, step_hook, catch, setup=None):
     """The loop of the module docstring for one simulator and the SLAM systems ``slams`` {name: options}
-    (``hidden``: a ``HiddenIds`` set-up builds the one system and corrupts the events it receives)."""
+    (``setup``: builds the systems and filters the events they receive; see run_question)."""
     boolean(progress, "progress")
     if not isinstance(question, str):
         raise ValueError(f"question must be a string (the label of the run), got {question!r}")
@@ -248,10 +240,10 @@ def _main_loop(config, scenario, seed, slams, progress, question, step_hook, cat
     if not config.enable_odometry:
         raise ValueError("enable_odometry must be True for a run: the SLAM system creates one vehicle vertex per "
                          "odometry tick (use DriveBotSimulator directly to study other event streams)")
-    factory = DriveBotSLAMSystem if hidden is None else hidden.system
+    factory = DriveBotSLAMSystem if setup is None else setup.system
     systems = {n: factory(config, **opts) for n, opts in slams.items()}
     state = _Run(sim, systems, question, config, scenario)
-    state.hidden = hidden
+    state.setup = setup
     try:
         _loop(state, progress, step_hook, catch)
         return _finish_all(state, catch)
@@ -275,7 +267,7 @@ class _Run:
         self.true_t, self.true_x = [], []
         self.t_start = _time.perf_counter()
         self.tick, self.phase = 0, "start"
-        self.hidden = None
+        self.setup = None
 
 
 def _loop(state, progress, step_hook, catch):
@@ -287,8 +279,8 @@ def _loop(state, progress, step_hook, catch):
         while sim.keep_running():
             state.tick = len(state.true_t)
             events = sim.events()
-            if state.hidden is not None:
-                events = state.hidden.filter(events, sim)
+            if state.setup is not None:
+                events = state.setup.filter(events, sim)
             for n, system in systems.items():
                 if n in state.failed:
                     continue
@@ -329,7 +321,7 @@ def _finish_all(state, catch):
             continue
         out[n].run_time = shared + rec[n]["wall"] + _time.perf_counter() - t_sys
         out[n].dropped_laser_readings = state.sim.dropped_laser_readings
-        out[n].hidden_ids = state.hidden
+        out[n].setup = state.setup
     return {n: out[n] for n in state.systems}
 
 
@@ -395,7 +387,7 @@ def _partial(state, name):
         res = _results(system, rec, true_t[:n], true_x[:n] or np.zeros((0, 3)), state.question, state.config,
                        state.scenario, history)
         res.run_time = _time.perf_counter() - state.t_start
-        res.hidden_ids = state.hidden
+        res.setup = state.setup
         return res
     except Exception:             # noqa: BLE001 - the original error matters more than its partial results
         return None

@@ -24,9 +24,7 @@ Graph elements (see ``helpers.drivebot.edges``): ``VehicleVertex`` per tick, ``L
 Optimisation: ``recommend_optimization()`` is ``step_number % period == 0`` with an integer period (None or
 inf: never; the runner then optimises once at the end). ``optimize(n)`` first runs the pre-optimisation hook
 (if any) and removes prediction edges when requested (all, or all but the first), then builds the structure
-and runs n LM iterations; it returns χ². With ``optimization_algorithm="incremental"`` it instead makes one
-update of a ``graph.IncrementalSmoother`` of at most n solves (no structure build: the factor of the last update is
-extended; every graph change other than growth, such as Q3's edits, makes that update start afresh).
+and runs n LM iterations; it returns χ².
 
 Options are validated on construction *and* on assignment (``system.optimization_period = 0`` raises); the
 configuration cannot be replaced after construction. ``remove_prediction_edges`` needs an observation sensor
@@ -40,7 +38,6 @@ explicitly through an ``in_graph`` mask (state and covariance NaN in the histori
 from __future__ import annotations
 
 import math
-import time
 from collections import Counter
 from typing import Callable
 
@@ -48,7 +45,6 @@ import numpy as np
 
 from ..graph import (BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2Prior,
                      SparseOptimizer, information_from_covariance)
-from ..graph.incremental import IncrementalSmoother
 from ..validation import integer
 from .config import SimulatorConfiguration
 from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex, predict
@@ -71,10 +67,7 @@ class DriveBotSLAMSystem:
         kinematics edges (or all but the first).
     pre_optimization_hook : callable(system) run before every optimisation (e.g. a Q3b pruning heuristic).
     optimization_algorithm : "lm" (the coursework's Levenberg–Marquardt, default), "gn", "lm-gtsam"
-        (GTSAM's LM schedule and relative stopping rule; for like-for-like comparisons with GTSAM), or
-        "incremental" (a Gauss–Newton solve per optimisation on a factor kept between them, more only while a
-        step is over iSAM2's relinearisation threshold: ``helpers.graph.incremental``; for optimising at every
-        step).
+        (GTSAM's LM schedule and relative stopping rule; for like-for-like comparisons with GTSAM).
     """
 
     def __init__(self, config: SimulatorConfiguration | None = None, optimization_period=None,
@@ -104,7 +97,6 @@ class DriveBotSLAMSystem:
         self._u_info = None
         self._removal_done_upto = 0  # process_model_edges[:k] have already been through removal
         self._built = False          # structure current for the graph as it is now
-        self._smoother = None        # the IncrementalSmoother of optimization_algorithm="incremental"
 
     def __setattr__(self, name, value):
         check = _OPTION_CHECKS.get(name)
@@ -315,24 +307,12 @@ class DriveBotSLAMSystem:
             self.pre_optimization_hook(self)
         if self.remove_prediction_edges:  # Q3a: delete the prediction edges before optimising
             self._delete_prediction_edges()
-        if self.optimization_algorithm == "incremental":
-            return self._incremental_update(max_iterations)
+        return self._solve(max_iterations)
+
+    def _solve(self, max_iterations: int) -> float:
+        """Build the structure if the graph changed and run ``optimization_algorithm``; returns χ²."""
         self.ensure_structure()
         return float(self.graph.optimize(max_iterations, algorithm=self.optimization_algorithm))
-
-    def _incremental_update(self, max_iterations):
-        """One IncrementalSmoother update of at most max_iterations solves (none when 0); graph.statistics gets
-        one entry per solve (χ² evaluated after the last one only)."""
-        if max_iterations == 0:
-            return self.chi2()
-        if self._smoother is None:
-            self._smoother = IncrementalSmoother(self.graph, VehicleVertex)
-        t0 = time.perf_counter()
-        chi2 = float(self._smoother.update(max_solves=max_iterations))
-        solves = self._smoother.last["solves"]
-        self.graph.statistics = [{"iteration": k, "chi2": chi2 if k == solves - 1 else math.nan, "mu": None,
-                                  "rejected": 0, "time": time.perf_counter() - t0} for k in range(solves)]
-        return chi2
 
     def chi2(self) -> float:
         self.ensure_structure()

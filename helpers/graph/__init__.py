@@ -144,10 +144,6 @@ bearing)), EdgePointPrior, EdgeSE2PointXY (g2o's EDGE_SE2_XY). Angles: ``wrap_an
 ``wrap_angle_mod``) in ``angles``. Errors: ``GraphError`` (a ValueError), ``GaugeFreedomError`` and
 ``NonFiniteError`` (NaN/inf χ², error or Jacobian, naming the edges). ``optimize`` is transactional: on any exception
 or interrupt the vertices hold the last accepted state.
-
-Optimising after every addition: ``IncrementalSmoother`` (``incremental``) keeps the square-root information factor
-of a chain of poses and a map between updates and solves one Gauss–Newton step per update (iSAM2's relinearisation
-rule); ``NotPositiveDefiniteError`` names a variable its edges do not constrain.
 """
 
 from . import kernels
@@ -159,10 +155,9 @@ from .errors import GaugeFreedomError, GraphError, NonFiniteError
 from .algorithms import GaussNewtonParams, GTSAMLevenbergMarquardtParams, LevenbergMarquardtParams
 from .algorithms_default import DefaultParams
 from .optimizer import SparseOptimizer
-from .incremental import IncrementalSmoother, NotPositiveDefiniteError
 from .vertex import BaseVertex, VertexPointXY, VertexSE2, VertexSE2Exp
 
 __all__ = ["DefaultParams", "GaussNewtonParams", "LevenbergMarquardtParams", "GTSAMLevenbergMarquardtParams", "wrap_angle", "wrap_angle_mod", "BaseVertex", "VertexSE2", "VertexSE2Exp", "VertexPointXY", "BaseEdge",
            "check_information", "information_from_covariance", "batch_matrix", "numeric_jacobians", "EdgeSE2", "EdgeSE2Prior", "EdgePositionPrior",
            "EdgeHeadingPrior", "EdgeRangeBearing", "EdgePointPrior", "EdgeSE2PointXY", "SparseOptimizer", "GraphError",
-           "GaugeFreedomError", "NonFiniteError", "IncrementalSmoother", "NotPositiveDefiniteError"]
+           "GaugeFreedomError", "NonFiniteError"]

@@ -27,7 +27,7 @@ from scipy.linalg import solve_triangular
 from scipy.linalg.lapack import dtbtrs
 
 from .chain_kernel import eliminate_chain, solve_chain
-from .errors import GraphError
+from ..graph.errors import GraphError
 
 __all__ = ["ChainFactor", "NotPositiveDefiniteError", "add_slot_terms_reference"]
 

@@ -1,15 +1,15 @@
 """DriveBot with the landmark ids hidden: the SLAM system that associates, the harder sensor, and the report.
 
-    res = run_question("q2_b", data_association="jcbb", clutter_rate=2.0, seed=0)
-    res.association_report()   # precision, recall, n_landmarks, n_true_landmarks, map error, …
+    res = run_hidden_ids("q2_b", data_association="jcbb", clutter_rate=2.0, seed=0)
+    association_report(res)   # precision, recall, n_landmarks, n_true_landmarks, map error, …
 
-``run_question`` (``runner``) runs the coursework's main loop unchanged; with ``data_association``, a
-``clutter_rate`` or a ``detection_probability`` it hands the loop a ``HiddenIds`` set-up, which changes two things:
+``run_hidden_ids`` runs the coursework's main loop (``drivebot.run_question``) unchanged; with ``data_association``,
+a ``clutter_rate`` or a ``detection_probability`` it hands the loop a ``HiddenIds`` set-up, which changes two things:
 
 - between the simulator and the system, ``SensorCorruption`` drops detections (``detection_probability``), adds
   clutter (``clutter_rate`` per scan) and hides the ids; the truth of every delivered column is kept in
   ``scan_truth`` for the report, outside the system;
-- the system is an ``AssociatingSLAMSystem`` (front-end ``helpers.online_slam.OnlineFrontEnd`` with the L09
+- the system is an ``AssociatingSLAMSystem`` (front-end ``helpers.advanced.online_slam.OnlineFrontEnd`` with the L09
   algorithm ``data_association`` = "nn", "mahalanobis", "ml" or "jcbb").
 
 ``data_association=None`` keeps the coursework (ids given): with no clutter and every detection kept, nothing of
@@ -36,7 +36,7 @@ separate factorisation for the covariances, recall within 0.0004, and saves abou
 are in ``benchmarks/RESULTS.md``).
 
 The period is not a free knob. Between updates the front-end's window fuses no observation
-(``helpers.online_slam.window``), so the landmarks' standard deviations relative to the vehicle grow with the
+(``helpers.advanced.online_slam.window``), so the landmarks' standard deviations relative to the vehicle grow with the
 odometry alone; more candidates exceed ``closure_sigma`` and are handled as loop closures (a tentative landmark,
 merged later or refused as ambiguous). On q2_e without clutter, periods of 120–250 ticks merge far more tentative
 landmarks into old ones (81–91 merges at 200–250 ticks against 7–8 at 100); recall falls below 0.95 at 150 and
@@ -50,18 +50,20 @@ import math
 
 import numpy as np
 
-from ..online_slam import (OnlineFrontEnd, RangeBearingModel, association_scores, check_algorithm, check_options,
+from .online_slam import (OnlineFrontEnd, RangeBearingModel, association_scores, check_algorithm, check_options,
                            map_errors)
-from ..online_slam.covariance import hessian_factors
-from ..online_slam.tracks import DROPPED
+from .online_slam.covariance import hessian_factors
+from .online_slam.tracks import DROPPED
 from ..validation import integer, nonnegative_number, one_of, probability
-from .edges import LandmarkVertex
-from .events import Event, EventType
-from .slam_system import DriveBotSLAMSystem
+from ..drivebot.edges import LandmarkVertex
+from ..drivebot.events import Event, EventType
+from ..drivebot.runner import Results, question_setup, run_question
+from ..drivebot.slam_system import DriveBotSLAMSystem
 
-__all__ = ["AssociatingSLAMSystem", "SensorCorruption", "HiddenIds", "association_report", "ASSOCIATION_OPTIONS"]
+__all__ = ["AssociatingSLAMSystem", "SensorCorruption", "HiddenIds", "association_report", "ASSOCIATION_OPTIONS",
+           "run_hidden_ids"]
 
-#: Options of the associating system that ``run_question`` accepts next to ``data_association``.
+#: Options of the associating system that ``run_hidden_ids`` accepts next to ``data_association``.
 ASSOCIATION_OPTIONS = ("n_sigma", "algorithm_options", "rules", "association_period", "association_iterations",
                        "association_algorithm", "range_margin", "association_space", "reject_ambiguous",
                        "closure_sigma", "closure_support", "closure_patience", "verify_merges", "verify_n_sigma")
@@ -128,7 +130,6 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
                  closure_sigma: float = 0.5, closure_support: int = 2, closure_patience: int = 50,
                  verify_merges: bool = False, verify_n_sigma: float = 3.0, **slam_options):
         super().__init__(config, **slam_options)
-        self._check_algorithm()
         self.association_period = integer(association_period, "association_period", minimum=1)
         self.association_iterations = integer(association_iterations, "association_iterations", minimum=1)
         self.association_algorithm = one_of(association_algorithm, "association_algorithm", ("lm", "gn", "lm-gtsam"))
@@ -174,11 +175,6 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
                 del self.landmark_vertices[key]
             raise
 
-    def _check_algorithm(self):
-        if self.optimization_algorithm == "incremental":
-            raise ValueError("optimization_algorithm='incremental' cannot be combined with data association: the "
-                             "front-end reads its covariances from the batch optimiser's factorisation; use 'lm', "
-                             "'gn' or 'lm-gtsam'")
 
     def _association_only(self) -> bool:
         return self.optimization_period is None and self.step_number % self.association_period == 0
@@ -191,7 +187,6 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
         association factorises H at the current estimates first — the front-end's covariances — and then runs at
         most ``association_iterations`` iterations of ``association_algorithm``, whose first Gauss–Newton step
         reuses that factorisation (module docstring)."""
-        self._check_algorithm()
         if not self._association_only():
             chi2 = super().optimize(max_iterations)
             self.frontend.refresh()
@@ -227,16 +222,6 @@ class HiddenIds:
         self.scan_truth = []
         self.corruption = None
 
-    @classmethod
-    def from_arguments(cls, data_association, clutter_rate, detection_probability, seed, overrides: dict):
-        """The set-up for these arguments, or None when the run is the coursework's (ids given, nothing
-        corrupted). Pops the association options out of ``overrides``."""
-        options = {k: overrides.pop(k) for k in list(overrides) if k in ASSOCIATION_OPTIONS}
-        setup = cls(data_association, clutter_rate, detection_probability, seed, options)
-        if data_association is None and setup.detection_probability == 1.0:
-            return None
-        return setup
-
     def system(self, config, **slam_options):
         """The SLAM system of the run."""
         self.corruption = SensorCorruption(self.clutter_rate, self.detection_probability,
@@ -264,11 +249,11 @@ class HiddenIds:
 
 def association_report(results) -> dict:
     """The association of a finished run (``Results.association_report``): precision, recall (pairings vs the
-    simulator's truth, see ``helpers.online_slam.metrics``), n_landmarks (created), n_true_landmarks (observed at
+    simulator's truth, see ``helpers.advanced.online_slam.metrics``), n_landmarks (created), n_true_landmarks (observed at
     least once), n_matched, map_rmse / map_max_error (m, matched landmarks), n_clutter, n_clutter_paired,
     data_association, clutter_rate, detection_probability, final_chi2, run_time; with a front-end also
     n_tentative_dropped, association_time and refresh_time (s), jcbb_nodes, budget_exhausted; and ``matching``."""
-    system, hidden = results.system, results.hidden_ids
+    system, hidden = results.system, results.setup if isinstance(results.setup, HiddenIds) else None
     frontend = getattr(system, "frontend", None)
     if frontend is None:                   # ids given: every delivered detection is an edge to its landmark
         truth = np.array([e.vertex(1).landmark_id for e in system.graph.edges()
@@ -305,3 +290,28 @@ def association_report(results) -> dict:
         })
     report["matching"] = scores["matching"]
     return report
+
+
+def run_hidden_ids(name: str, data_association: str | None = None, clutter_rate: float = 0.0,
+                   detection_probability: float = 1.0, seed=0, progress: bool = False, step_hook=None,
+                   **overrides) -> Results:
+    """``drivebot.run_question`` with the landmark ids hidden (module docstring).
+
+    ``data_association``: None keeps the ids (the coursework), or "nn", "mahalanobis", "ml" or "jcbb", the L09
+    algorithm the system associates every scan with; ``clutter_rate``: spurious detections per scan (Poisson,
+    uniform in the sensor footprint; needs an algorithm); ``detection_probability``: each true detection is kept
+    with this probability. ``overrides``: those of ``run_question`` and the association's options
+    (``ASSOCIATION_OPTIONS``, only with an algorithm). These act through the laser: a question without it raises
+    ValueError, as does any bad value, before anything runs."""
+    overrides = dict(overrides)
+    options = {k: overrides.pop(k) for k in list(overrides) if k in ASSOCIATION_OPTIONS}
+    setup = HiddenIds(data_association, clutter_rate, detection_probability, seed, options)
+    corrupted = data_association is not None or setup.detection_probability < 1.0
+    if corrupted and not question_setup(name, **overrides)[1].enable_laser:
+        given = next(f"{k}={v!r}" for k, v in [("data_association", data_association),
+                                                ("detection_probability", detection_probability)]
+                     if v not in (None, 1.0))
+        raise ValueError(f"{given} has no effect on {name!r}: it acts through the laser; enable it with "
+                         f"enable_laser=True")
+    return run_question(name, seed=seed, progress=progress, step_hook=step_hook,
+                        setup=setup if corrupted else None, **overrides)

@@ -1,7 +1,7 @@
 """Support for notebook 22 (DriveBot with the landmark ids hidden): runs, what happened at the loop closure, the
 results table and the figures.
 
-* ``Runs`` — runs ``run_question(question, data_association=..., clutter_rate=...)`` once per setting and keeps a
+* ``Runs`` — runs ``run_hidden_ids(question, data_association=..., clutter_rate=...)`` once per setting and keeps a
   ``Case``: the association report, the graph's χ² degrees of freedom and band, and — for the questions named in
   ``keep`` — the ``Results`` and an ``AssociationRecorder`` (the large map keeps only the numbers).
 * ``AssociationRecorder`` — a ``step_hook`` that records what the front-end knew *online*: the tick of every scan,
@@ -19,7 +19,7 @@ results table and the figures.
   machines (ratios of counts to 3 decimals, χ² to 3 significant figures, map error in cm to 2).
 * ``plot_chi2_traces``, ``plot_final_map``, ``plot_closure`` — the figures.
 * ``nn_gate`` — the Euclidean gate of the front-end's NN at a range r: n_σ·√(σ_r² + r²σ_β²), the sensor noise alone
-  (the pose and map uncertainty ignored), in the Cartesian association space of ``helpers.online_slam.models``.
+  (the pose and map uncertainty ignored), in the Cartesian association space of ``helpers.advanced.online_slam.models``.
 """
 from __future__ import annotations
 
@@ -30,9 +30,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..figures import COLORS
-from ..online_slam import check_algorithm
+from .online_slam import check_algorithm
 from ..validation import integer, nonnegative_number, positive_number
-from .runner import Results, run_question
+from ..drivebot.runner import Results
+from .hidden_ids import association_report, run_hidden_ids
 
 __all__ = ["ALGORITHM_LABELS", "ALGORITHM_STYLES", "Case", "Runs", "AssociationRecorder", "true_sources",
            "run_summary", "observation_ticks", "chi2_ticks", "revisits", "closure_pairings", "closure_outcome",
@@ -47,7 +48,7 @@ ALGORITHM_STYLES = {"nn": (COLORS["alt"], "-"), "mahalanobis": (COLORS["bound"],
 
 # ------------------------------------------------------------------------------------------------ recording
 class AssociationRecorder:
-    """``step_hook`` for ``run_question(..., data_association=...)``: what the front-end knew online.
+    """``step_hook`` for ``run_hidden_ids(..., data_association=...)``: what the front-end knew online.
 
     After every tick k it stores
 
@@ -71,7 +72,7 @@ class AssociationRecorder:
     def __call__(self, system, k):
         frontend = getattr(system, "frontend", None)
         if frontend is None:
-            raise ValueError("AssociationRecorder needs a run with the ids hidden (run_question(..., "
+            raise ValueError("AssociationRecorder needs a run with the ids hidden (run_hidden_ids(..., "
                              "data_association=...)): this system has no front-end")
         k = integer(k, "k", minimum=0)
         self.scan_tick.extend([k] * (frontend.scan_count - len(self.scan_tick)))
@@ -117,7 +118,7 @@ class Case:
 
 
 class Runs:
-    """Runs of ``run_question`` with the ids hidden, each setting run once (``case``).
+    """Runs of ``run_hidden_ids`` with the ids hidden, each setting run once (``case``).
 
     ``seed``: the default seed; ``keep``: questions whose runs keep their ``Results`` and record an
     ``AssociationRecorder`` (q2_b: small; the large map keeps only its numbers); ``overrides``: passed to every
@@ -141,10 +142,10 @@ class Runs:
         if key not in self._cases:
             keep = question in self.keep
             recorder = AssociationRecorder() if keep else None
-            res = run_question(question, seed=seed, data_association=algorithm, clutter_rate=clutter_rate,
+            res = run_hidden_ids(question, seed=seed, data_association=algorithm, clutter_rate=clutter_rate,
                                step_hook=recorder, **self.overrides)
             dof = int(res.graph_statistics()["dof"])
-            self._cases[key] = Case(question, algorithm, clutter_rate, seed, res.association_report(), dof,
+            self._cases[key] = Case(question, algorithm, clutter_rate, seed, association_report(res), dof,
                                     res.chi2_bounds(), res if keep else None, recorder, run_summary(res))
         return self._cases[key]
 
@@ -162,7 +163,7 @@ def true_sources(results) -> dict:
     """{front-end key: true landmark id of its first observation} (0: started by clutter)."""
     if not isinstance(results, Results) or getattr(results.system, "frontend", None) is None:
         raise ValueError("true_sources needs the Results of a run with data_association")
-    scans = results.hidden_ids.scan_truth
+    scans = results.setup.scan_truth
     truth = np.concatenate(scans) if scans else np.zeros(0, dtype=np.int64)
     return {t.key: int(truth[t.observations[0]]) for t in results.system.frontend.tracks}
 
@@ -187,7 +188,7 @@ def observation_ticks(case) -> tuple:
     res, rec = _kept(case, "observation_ticks")
     scans = np.asarray(res.system.frontend.observation_log["scan"], dtype=np.int64)
     ticks = np.asarray(rec.scan_tick, dtype=np.int64)
-    parts = res.hidden_ids.scan_truth
+    parts = res.setup.scan_truth
     truth = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
     return (ticks[scans] if scans.size else np.zeros(0, dtype=np.int64)), truth
 

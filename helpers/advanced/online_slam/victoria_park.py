@@ -74,9 +74,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm import tqdm
 
-from ..datasets import build_optimizer, read_dataset
-from ..graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
-from ..validation import integer, positive_number, same_setting
+from ...datasets import build_optimizer, read_dataset
+from ...graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
+from ...validation import integer, positive_number, same_setting
 from .algorithms import ALGORITHMS, check_algorithm
 from .frontend import OnlineFrontEnd
 from .metrics import association_scores

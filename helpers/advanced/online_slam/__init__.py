@@ -1,4 +1,4 @@
-"""helpers.online_slam — online graph SLAM with data association (observations arrive without ids).
+"""helpers.advanced.online_slam — online graph SLAM with data association (observations arrive without ids).
 
 Modules by responsibility (each imports only modules listed before it, and the layers below the package):
 
@@ -21,7 +21,7 @@ Modules by responsibility (each imports only modules listed before it, and the l
     victoria_park   ``run_victoria_park``: the real dataset, associated online, and its report
 
 ``online_slam`` sits above ``graph``, ``association`` and ``datasets``; none of them imports it. DriveBot with the
-ids hidden is ``helpers.drivebot.association`` (``run_question(name, data_association="jcbb", …)``), which uses
+ids hidden is ``helpers.advanced.hidden_ids`` (``run_hidden_ids(name, data_association="jcbb", …)``), which uses
 this package.
 """
 from .algorithms import ALGORITHMS, check_algorithm, check_options

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from ..validation import int_array
+from ...validation import int_array
 
 __all__ = ["best_matching", "association_scores", "map_errors"]
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..graph import EdgeSE2PointXY
+from ...graph import EdgeSE2PointXY
 from .algorithms import associate
 
 __all__ = ["relative_sigma", "largest_sd", "ambiguous_pairings", "sub_problem"]

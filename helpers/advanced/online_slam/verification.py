@@ -50,8 +50,8 @@ from bisect import bisect_right
 
 import numpy as np
 
-from ..gaussian import chi2inv, confidence_level
-from ..validation import boolean, integer, positive_number
+from ...gaussian import chi2inv, confidence_level
+from ...validation import boolean, integer, positive_number
 from .covariance import MarginalColumns
 from .tracks import CONFIRMED
 

@@ -46,8 +46,8 @@ import math
 import numpy as np
 from numba import njit
 
-from ..graph import EdgeRangeBearing, EdgeSE2PointXY, wrap_angle
-from ..validation import positive_number
+from ...graph import EdgeRangeBearing, EdgeSE2PointXY, wrap_angle
+from ...validation import positive_number
 from . import scan_kernels
 
 __all__ = ["RangeBearingModel", "motion_jacobians", "unwrap_bearings"]

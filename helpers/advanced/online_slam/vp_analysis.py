@@ -18,9 +18,9 @@ import math
 
 import numpy as np
 
-from ..datasets import read_dataset
-from ..graph import VertexPointXY, VertexSE2
-from ..validation import int_array, integer, positive_number
+from ...datasets import read_dataset
+from ...graph import VertexPointXY, VertexSE2
+from ...validation import int_array, integer, positive_number
 from .victoria_park import run_victoria_park, victoria_park_scans
 
 __all__ = ["poses", "landmark_positions", "odometry_drift", "near_duplicate_ids", "known_id_nearest_neighbour",

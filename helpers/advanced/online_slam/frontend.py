@@ -46,10 +46,10 @@ import time
 
 import numpy as np
 
-from ..association.common import problem_from_cov
-from ..gaussian import chi2inv, confidence_level
-from ..graph import VertexPointXY
-from ..validation import boolean, integer, positive_number
+from ...association.common import problem_from_cov
+from ...gaussian import chi2inv, confidence_level
+from ...graph import VertexPointXY
+from ...validation import boolean, integer, positive_number
 from .algorithms import associate, check_algorithm, check_options
 from .covariance import FACTORISE, MarginalColumns, hessian_factors
 from .closure import LoopClosure

@@ -35,11 +35,11 @@ import numpy as np
 from ..validation import integer, nonnegative_number
 from .chain_factor import ChainFactor, NotPositiveDefiniteError
 from .chain_kernel import add_slot_terms
-from .edge import check_model_output
-from .errors import GraphError
-from .linearise import nonfinite_error, total_chi2
-from .storage import GrowableArray
-from .vertex import BaseVertex
+from ..graph.edge import check_model_output
+from ..graph.errors import GraphError
+from ..graph.linearise import nonfinite_error, total_chi2
+from ..graph.storage import GrowableArray
+from ..graph.vertex import BaseVertex
 
 __all__ = ["IncrementalSmoother", "NotPositiveDefiniteError"]
 

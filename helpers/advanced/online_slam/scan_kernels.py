@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..graph.kernels import wrap_angle_scalar
+from ...graph.kernels import wrap_angle_scalar
 
 __all__ = ["in_footprint", "cartesian_density", "block_largest_sd"]
 

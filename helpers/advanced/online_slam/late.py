@@ -44,9 +44,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..gaussian import chi2inv, confidence_level
-from ..graph import wrap_angle
-from ..validation import boolean, positive_number
+from ...gaussian import chi2inv, confidence_level
+from ...graph import wrap_angle
+from ...validation import boolean, positive_number
 from .covariance import MarginalColumns
 from .tracks import CONFIRMED, Track
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..validation import integer, positive_number
+from ...validation import integer, positive_number
 
 __all__ = ["ConfirmationRules", "Track", "TENTATIVE", "CONFIRMED", "DROPPED"]
 

@@ -24,9 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..graph import BaseEdge, BaseVertex, SparseOptimizer, check_information
-from ..graph.edge import check_information_batch
-from ..validation import float_array
+from ...graph import BaseEdge, BaseVertex, SparseOptimizer, check_information
+from ...graph.edge import check_information_batch
+from ...validation import float_array
 from .models import RangeBearingModel
 
 __all__ = ["check_graph_and_model", "check_pose_vertex", "check_pose_edge", "check_scan", "ScanUndo"]
