@@ -129,37 +129,12 @@ def test_predict_bad_input(x, u, dt):
         predict(x, u, dt)
 
 
-@pytest.mark.parametrize("seed", [0, 1])
-def test_kinematics_kernel_equals_numpy_reference(seed):
-    """The compiled fast path (what the optimiser calls) and the readable numpy model give the same numbers."""
-    rng = np.random.default_rng(seed)
-    n = 5000
-    xk, xn = _random_poses(rng, n), _random_poses(rng, n)
-    xn[:10, 2] = wrap_angle(xk[:10, 2] + math.pi)          # Δψ on the ±π cut
-    u, dt = rng.normal(size=(n, 3)), rng.uniform(0.01, 0.5, n)
-    # Two code paths (numba loop, numpy arrays) for the same expressions in the same order; the wrap of Δψ uses the
-    # same formula on the same difference, so the ±π rows agree bit for bit. What may differ is cos/sin (libm vs
-    # numpy's SIMD loops, ≤ 1 ulp) and FMA contraction: terms are up to |Δ|/ΔT ≈ 1e4, so a row whose terms cancel
-    # moves by ≈ 1e-16·1e4 = 1e-12 absolute. Measured: a 1-ulp change of cos/sin uses ≤ 0.13 of a 1e-12
-    # tolerance, an FMA ≤ 0.02; atol 1e-11 leaves a ×75 margin and still catches any wrong term (errors ≥ 1e-3).
-    for jacobians in (True, False):
-        e, jac = VehicleKinematicsEdge.evaluate([xk, xn], u, {"dt": dt}, jacobians)
-        e_ref, jac_ref = VehicleKinematicsEdge.evaluate_reference([xk, xn], u, {"dt": dt}, jacobians)
-        np.testing.assert_allclose(e, e_ref, rtol=1e-12, atol=1e-11)
-        assert (jac is None) == (jac_ref is None) == (not jacobians)
-        for j, j_ref in zip(jac or [], jac_ref or [], strict=True):
-            np.testing.assert_allclose(j, j_ref, rtol=1e-12, atol=1e-11)
-
-
-def test_kinematics_reference_jacobians_central_differences():
+def test_kinematics_jacobians_central_differences():
     rng = np.random.default_rng(9)
     xk, dt = _random_poses(rng, 9), rng.uniform(0.05, 0.5, 9)
     u = rng.normal(size=(9, 3))
     xn = predict(xk, u + rng.normal(0, 0.5, (9, 3)), dt)
 
-    class Reference(VehicleKinematicsEdge):
-        evaluate = staticmethod(VehicleKinematicsEdge.evaluate_reference)
-
-    _, J = Reference.evaluate([xk, xn], u, {"dt": dt})
-    for a, b in zip(J, _numeric_jacobians(Reference, [xk, xn], u, {"dt": dt}), strict=True):
+    _, J = VehicleKinematicsEdge.evaluate([xk, xn], u, {"dt": dt})
+    for a, b in zip(J, _numeric_jacobians(VehicleKinematicsEdge, [xk, xn], u, {"dt": dt}), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)

@@ -53,25 +53,6 @@ def test_numeric_jacobians_across_the_bearing_cut():
     np.testing.assert_allclose(jm, jm_ref, atol=1e-7)
 
 
-def test_docstring_error_only_example_matches_the_kinematics_edge():
-    from helpers.drivebot import VehicleKinematicsEdge
-
-    doc = hg.__doc__
-    start = doc.index("    class KinematicsErrorOnly(BaseEdge):")
-    source = "\n".join(line[4:] for line in doc[start:doc.index("Many edges of one class", start)].splitlines())
-    namespace = {"BaseEdge": BaseEdge, "VertexSE2": VertexSE2, "np": np, "wrap_angle": wrap_angle}
-    exec(source, namespace)
-    cls = namespace["KinematicsErrorOnly"]
-    rng = np.random.default_rng(3)
-    states = [np.c_[rng.normal(size=(20, 2)), rng.uniform(-3, 3, 20)] for _ in range(2)]
-    z, params = rng.normal(size=(20, 3)), {"dt": rng.uniform(0.05, 0.5, 20)}
-    e, jac = cls.evaluate(states, z, params)
-    e_ref, jac_ref = VehicleKinematicsEdge.evaluate(states, z, params)
-    np.testing.assert_allclose(e, e_ref, rtol=1e-12, atol=1e-12)
-    for j, j_ref in zip(jac, jac_ref, strict=True):
-        np.testing.assert_allclose(j, j_ref, rtol=1e-6, atol=1e-6)
-
-
 def test_numeric_default_per_object_and_in_the_optimiser():
     a = VertexSE2(0, [0.0, 0.0, 0.3], fixed=True)
     m = VertexPointXY(0, [2.0, 1.0])

@@ -9,7 +9,7 @@ import pytest
 from helpers.graph import (BaseEdge, BaseVertex, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
                            EdgeSE2Prior, GaugeFreedomError, GaussNewtonParams, GraphError,
                            GTSAMLevenbergMarquardtParams, LevenbergMarquardtParams, SparseOptimizer, VertexPointXY,
-                           VertexSE2, batch_matrix, check_information, information_from_covariance, kernels,
+                           VertexSE2, batch_matrix, check_information, information_from_covariance,
                            numeric_jacobians, wrap_angle, wrap_angle_mod)
 from helpers.graph.linear import HessianPattern, LDLSolver
 from helpers.graph.marginals import sparse_inverse_on_pattern
@@ -378,13 +378,6 @@ CASES = {
                                                                  {}, step=-1.0), ValueError, "step"),
     "wrap_angle-str": (None, lambda c: wrap_angle("north"), ValueError, "theta"),
     "wrap_angle_mod-str": (None, lambda c: wrap_angle_mod(["a"]), ValueError, "theta"),
-    "se2_between-rows": (None, lambda c: kernels.se2_between(np.zeros((3, 3)), np.zeros((2, 3)), np.zeros((3, 3)),
-                                                             True), ValueError, "se2_between: xj"),
-    "se2_between-width": (None, lambda c: kernels.se2_between(np.zeros((3, 2)), np.zeros((3, 2)), np.zeros((3, 2)),
-                                                              True), ValueError, "se2_between: xi"),
-    "vehicle_kinematics-dt": (None, lambda c: kernels.vehicle_kinematics(np.zeros((3, 3)), np.zeros((3, 3)),
-                                                                         np.zeros((3, 3)), np.ones(2), True),
-                              ValueError, "vehicle_kinematics: dt"),
     "ldl-solve-before-factor": (None, lambda c: LDLSolver().solve(np.ones(2)), GraphError, "factor first"),
     "ldl-solve-rhs": (None, lambda c: LDLSolver().factor(_pattern(), np.array([2.0, 1.0, 2.0])).solve(np.ones(3)),
                       ValueError, "rhs"),

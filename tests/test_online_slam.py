@@ -462,3 +462,12 @@ def test_largest_sd_is_the_root_of_the_largest_eigenvalue_and_rejects_bad_shapes
     for bad in (np.eye(2), np.zeros((3, 3, 3)), np.zeros((2, 2, 1))):
         with pytest.raises(ValueError, match="P must be a"):
             largest_sd(bad)
+
+
+def test_wrap_angle_scalar_is_bit_identical_to_wrap_angle():
+    from helpers.advanced.online_slam.scan_kernels import wrap_angle_scalar
+    from helpers.graph import wrap_angle
+    rng = np.random.default_rng(7)
+    values = np.r_[rng.uniform(-20, 20, 2000), [np.pi, -np.pi, 3 * np.pi, -3 * np.pi, 0.0, np.nextafter(np.pi, 0)]]
+    compiled = np.array([wrap_angle_scalar(v) for v in values])
+    assert compiled.tobytes() == wrap_angle(values).tobytes()

@@ -264,7 +264,7 @@ def test_the_real_registry_builds_a_clean_student_edition(real_edition):
     assert (dest / "EXERCISES.md").exists() and (dest / "tools" / "grade.py").exists()
     assert not (dest / "tools" / "student.py").exists()
     text = (dest / "helpers" / "drivebot" / "edges.py").read_text(encoding="utf-8")
-    assert "return VehicleKinematicsEdge.evaluate_reference(states, z, params, jacobians)" in text
+    assert "evaluate_reference" not in text      # one kinematics model: the student's evaluate is what runs
 
 
 # ---------------------------------------------------------------------------------------------- fast paths

@@ -18,9 +18,8 @@ Defined here:
     Δ = [x_{k+1} − x_k, y_{k+1} − y_k, wrap(ψ_{k+1} − ψ_k)],  c = cos ψ_k, s = sin ψ_k,
     J_k     = (1/ΔT) [[−c, −s, −Δx s + Δy c], [s, −c, −Δx c − Δy s], [0, 0, −1]],
     J_{k+1} = Mᵀ(ψ_k) / ΔT = (1/ΔT) [[c, s, 0], [−s, c, 0], [0, 0, 1]].
-    ``evaluate_reference`` is these equations in numpy, for all edges of the class at once (it is also the
-    example edge of ``helpers.graph``'s protocol); ``evaluate``, which the optimiser calls, computes the same
-    numbers in the compiled loop ``helpers.graph.kernels.vehicle_kinematics``.
+    ``evaluate`` is these equations in numpy, for all edges of the class at once (it is also the example edge of
+    ``helpers.graph``'s protocol).
     ``initialize()`` sets x_{k+1} = x_k ⊞ ΔT M(ψ_k) z (forward prediction, ψ wrapped) — see ``predict``.
 
 ``BuggyCompassEdge`` — the coursework's provided compass edge: e = ψ + Δψ_C − z with **no wrap**,
@@ -32,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..graph import (BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, VertexPointXY, VertexSE2,
-                     batch_matrix, kernels, wrap_angle)
+                     batch_matrix, wrap_angle)
 
 __all__ = ["VehicleVertex", "LandmarkVertex", "VehicleKinematicsEdge", "BuggyCompassEdge", "FixedCompassEdge",
            "GPSEdge", "LandmarkRangeBearingEdge", "predict"]
@@ -79,16 +78,14 @@ def predict(x, u, dt):
 
 
 class VehicleKinematicsEdge(BaseEdge):
-    """Velocity-form process model between consecutive vehicle poses, per-edge ``dt`` (module docstring).
-
-    ``evaluate_reference``: the model in numpy; ``evaluate``: the same numbers from a compiled loop."""
+    """Velocity-form process model between consecutive vehicle poses, per-edge ``dt`` (module docstring)."""
 
     vertex_types = (VertexSE2, VertexSE2)
     measurement_dimension = 3
     parameters = {"dt": 0.1}
 
     @staticmethod
-    def evaluate_reference(states, z, params, jacobians=True):
+    def evaluate(states, z, params, jacobians=True):
         # Q1b: the process-model edge, e = Mᵀ(ψ_k) Δ / ΔT − u, and its analytic Jacobians J_k, J_{k+1}
         # (module docstring), for every edge of the class at once.
         xk, xn = states
@@ -106,15 +103,6 @@ class VehicleKinematicsEdge(BaseEdge):
                            [-s, c, 0],
                            [0, 0, 1]])
         return e, [jk * inv_dt[:, None, None], jn * inv_dt[:, None, None]]
-
-    @staticmethod
-    def evaluate(states, z, params, jacobians=True):
-        # the optimiser's fast path: evaluate_reference's numbers from one compiled loop over the edges
-        xk, xn = states
-        dt = np.ascontiguousarray(params["dt"], dtype=float).reshape(-1)
-        e, jk, jn = kernels.vehicle_kinematics(np.ascontiguousarray(xk), np.ascontiguousarray(xn),
-                                               np.ascontiguousarray(z), dt, bool(jacobians))
-        return (e, [jk, jn]) if jacobians else (e, None)
 
     def initialize(self) -> None:
         """Set the second vertex to the forward prediction x_k + ΔT M(ψ_k) z from the first."""

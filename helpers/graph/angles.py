@@ -1,4 +1,4 @@
-"""Angle wrapping shared by every module of the workbook (compiled code uses ``kernels.wrap_angle_scalar``).
+"""Angle wrapping shared by every module of the workbook.
 
 wrap_angle(θ)     = θ − 2π·floor((θ + π) / 2π), element-wise, result in [−π, π). Used by the graph's edges and
                     vertices. (The coursework's ``normalize_theta`` adds or subtracts 2π once; this robust form

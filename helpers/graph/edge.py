@@ -19,8 +19,6 @@ slot's ⊞ (``numeric_jacobians``): right but slower, and a good check of analyt
 Convention: e = h(x) − z, χ² = eᵀ Ω e, and the optimiser steps X ⊞ (−dX) with dX = H⁻¹ b.
 The per-object ``error()`` / ``chi2()`` call the same ``evaluate`` with E = 1.
 
-Where a compiled kernel (``kernels.py``) replaces a numpy ``evaluate`` for speed, the class keeps the readable
-numpy model as ``evaluate_reference`` (same signature and results; the tests compare the two).
 ``batch_matrix`` writes an (E, r, c) stack of Jacobians row by row, the way the equations read.
 """
 
@@ -292,8 +290,6 @@ class BaseEdge:
     # ----- vectorised model (override evaluate, or only error_batch) ---------------------------------------
     #: step h of the central differences in the default ``evaluate``
     numeric_step = 1e-6
-    #: the readable numpy model, for classes whose ``evaluate`` is a compiled fast path (else None)
-    evaluate_reference = None
 
     @staticmethod
     def error_batch(states, z, params):

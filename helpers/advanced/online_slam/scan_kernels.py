@@ -29,9 +29,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ...graph.kernels import wrap_angle_scalar
-
 __all__ = ["in_footprint", "cartesian_density", "block_largest_sd"]
+
+_TWO_PI = 2.0 * np.pi
+
+
+@njit(cache=True)
+def wrap_angle_scalar(theta):
+    """θ − 2π·floor((θ + π) / 2π), folded into [−π, π): ``angles.wrap_angle`` for one float, compiled."""
+    out = theta - _TWO_PI * np.floor((theta + np.pi) / _TWO_PI)
+    if out >= np.pi:
+        out -= _TWO_PI
+    return out
 
 
 @njit(cache=True)
