@@ -46,7 +46,7 @@ except ImportError:
     sys.exit("benchmarks/association_factorisation.py needs cvxopt (pip install cvxopt)")
 
 import helpers.advanced.hidden_ids as drivebot_association
-from helpers.graph import cholmod_backend
+from helpers.advanced.fast_graph import cholmod_backend
 
 
 def capture(seed):

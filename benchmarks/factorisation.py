@@ -41,9 +41,9 @@ try:
 except ImportError:
     sys.exit("benchmarks/factorisation.py needs cvxopt (pip install cvxopt)")
 
+from helpers.advanced.fast_graph import FastOptimizer, cholmod_backend
+from helpers.advanced.fast_graph.cholmod_backend import pattern_matrix
 from helpers.datasets import load_dataset
-from helpers.graph import cholmod_backend
-from helpers.graph.cholmod_backend import pattern_matrix
 
 GRAPHS = ("w100", "w10000", "w20000", "victoria_park", "q2_e")
 LAMBDA = 1e-5
@@ -52,11 +52,11 @@ LAMBDA = 1e-5
 def damped_hessian(name):
     """(pattern, upper-triangle CSC data of H + λI, b) of graph ``name`` at its initial estimate."""
     if name == "q2_e":
-        from helpers.drivebot.runner import run_question
-        opt = run_question("q2_e").system.graph
+        from helpers.advanced.drivebot_variants import run_fast
+        opt = run_fast("q2_e").system.graph
         opt.initialize_optimization()
     else:
-        opt = load_dataset(name)
+        opt = load_dataset(name, optimizer_class=FastOptimizer)
     system = opt._free_state().linearise()
     pattern = opt._structure.pattern
     data = system.hessian_data.copy()

@@ -35,8 +35,9 @@ except ImportError:
 from helpers import datasets
 from helpers.datasets.graph_data import initial_values
 from helpers.recorded_peers import covariance_agreement
-from helpers.graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2, VertexSE2Exp
-from helpers.graph import cholmod_backend
+from helpers.advanced.fast_graph import FastOptimizer, VertexSE2Exp
+from helpers.graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
+from helpers.advanced.fast_graph import cholmod_backend
 
 
 def load2d(name):
@@ -51,9 +52,11 @@ def load2d(name):
 def warm_up():
     """Compile (or load from numba's cache) every kernel on tiny graphs — pose-only and mixed graphs, both
     vertex updates, all algorithms, marginals — so timings exclude compilation."""
-    for pose_class in (VertexSE2, VertexSE2Exp):
+    cases = [(SparseOptimizer, VertexSE2, ("lm", "gn"))] + [(FastOptimizer, pose_class, ("lm", "gn", "lm-gtsam"))
+                                                         for pose_class in (VertexSE2, VertexSE2Exp)]
+    for optimizer_class, pose_class, algorithms in cases:
         for with_point in (False, True):
-            g = SparseOptimizer()
+            g = optimizer_class()
             a, b = pose_class(0, fixed=True), pose_class(1, [1, 0.1, 0])
             g.add_vertex(a)
             g.add_vertex(b)
@@ -64,7 +67,7 @@ def warm_up():
                 g.add_edge(EdgeRangeBearing([a, p], measurement=[2.2, 0.4]))
                 g.add_edge(EdgeRangeBearing([b, p], measurement=[1.4, 0.8]))
             g.initialize_optimization()
-            for algorithm in ("lm", "gn", "lm-gtsam"):
+            for algorithm in algorithms:
                 g.optimize(3, algorithm=algorithm)
             g.compute_marginals()
     if cholmod_backend.AVAILABLE:  # the decision's kernels (only large patterns reach them)
@@ -72,16 +75,19 @@ def warm_up():
         cholmod_backend.column_counts(pattern, cholmod_backend.amd_ordering(cholmod_backend.pattern_matrix(pattern)))
 
 
-def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2, data=None, backend="auto"):
-    """Load and solve a dataset with helpers.graph; time the structure build, the optimise call and all pose
-    marginals.
+def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2, data=None, backend="auto",
+                optimizer_class=FastOptimizer):
+    """Load and solve a dataset with the workbook's optimiser ``optimizer_class`` (the advanced ``FastOptimizer``, or
+    the course's ``SparseOptimizer``); time the structure build, the optimise call and all pose marginals.
 
     ``data``: the parsed dataset (``datasets.read_dataset(name)``) when the caller already has it; ``backend``:
-    the ``LDLSolver`` backend ("auto", "qdldl" — the solver before CHOLMOD was added —, "cholmod")."""
+    FastOptimizer's ``LDLSolver`` backend ("auto", "qdldl" — the solver before CHOLMOD was added —, "cholmod")."""
     if data is None:
         data = datasets.read_dataset(name)
-    opt = datasets.build_optimizer(data, pose_class=pose_class)
-    opt.linear_solver.backend = backend
+    opt = datasets.build_optimizer(data, pose_class=pose_class, optimizer_class=optimizer_class)
+    fast = optimizer_class is FastOptimizer
+    if fast:
+        opt.linear_solver.backend = backend
     t, c = time.perf_counter(), time.process_time()
     opt.initialize_optimization()
     t_build, c_build = time.perf_counter() - t, time.process_time() - c
@@ -100,9 +106,10 @@ def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2, data=None
         cov = {v.id: m @ marg[v] @ m.T for v, m in zip(poses, ms)}
     est = {v.id: v.estimate for v in poses}
     points = {v.id: v.estimate for v in opt.vertices() if not isinstance(v, VertexSE2)}
-    return {"solver": "helpers", "config": f"{algorithm}, {pose_class.__name__}", "time": t_opt, "iters": opt.iterations, "chi2": chi2, "marg_time": t_marg,
+    label = f"{algorithm}, {pose_class.__name__}" + ("" if fast else " (course)")
+    return {"solver": "helpers", "config": label, "time": t_opt, "iters": opt.iterations, "chi2": chi2, "marg_time": t_marg,
             "cov": cov, "est": est, "est0": est0, "points": points,
-            "hist": [chi2_0] + opt.chi2_history, "build_time": t_build, "backend": opt.linear_solver.active_backend,
+            "hist": [chi2_0] + opt.chi2_history, "build_time": t_build, "backend": opt.linear_solver.active_backend if fast else "qdldl",
             "cpu_time": c_opt, "build_cpu_time": c_build}
 
 

@@ -22,7 +22,8 @@ import argparse
 
 import numpy as np
 
-from helpers.graph import VertexSE2Exp
+from helpers.advanced.fast_graph import VertexSE2Exp
+from helpers.graph import SparseOptimizer, VertexSE2
 from peer_runs import agreement, gtsam_marginals_at, run_g2o, run_gtsam, run_helpers, warm_up
 
 
@@ -39,6 +40,8 @@ def main():
         res = [run_helpers(name, alg, iters, pose_class, backend=args.backend), run_gtsam(name)]
         if "g2o" in peers:
             res.append(run_g2o(name))
+        # the course's optimiser (helpers.graph) with the coursework's Gauss–Newton, in the same process
+        res.append(run_helpers(name, "gn", iters, VertexSE2, optimizer_class=SparseOptimizer))
         ref = res[1]["cov"]
         print(f"\n== {name} ==")
         print(f"{'solver':8s} {'configuration':24s} {'time [s]':>9s} {'iters':>6s} {'final chi2':>16s} {'marginals [s]':>14s} "
@@ -46,9 +49,10 @@ def main():
         for r in res:
             print(f"{r['solver']:8s} {r['config']:24s} {r['time']:9.3f} {r['iters']:6d} {r['chi2']:16.6f} {r['marg_time']:14.3f} "
                   f"{agreement(r['cov'], ref):17.2e}")
-        h = res[0]
-        fastest = min(res[1:], key=lambda r: r["time"])
-        fastest_m = min((r for r in res[1:] if np.isfinite(r["marg_time"])), key=lambda r: r["marg_time"])
+        h, course = res[0], res[-1]
+        peers_only = res[1:-1]
+        fastest = min(peers_only, key=lambda r: r["time"])
+        fastest_m = min((r for r in peers_only if np.isfinite(r["marg_time"])), key=lambda r: r["marg_time"])
         best = res[1]["chi2"]  # GTSAM: the peer with the same cost function
         print(f"ratios: time helpers/{fastest['solver']} = {h['time'] / fastest['time']:.2f}, "
               f"marginals helpers/{fastest_m['solver']} = {h['marg_time'] / fastest_m['marg_time']:.2f}, "
@@ -62,6 +66,9 @@ def main():
               f"{(h['build_cpu_time'] + h['cpu_time']) / g['cpu_time']:.2f} with build")
         same = agreement(h["cov"], gtsam_marginals_at(name, h["est"], h["points"]))
         print(f"pose covariances vs GTSAM Marginals evaluated at helpers' solution: max rel. difference {same:.2e}")
+        print(f"course optimiser (coursework GN): time course/GTSAM = {course['time'] / g['time']:.2f}, "
+              f"course/advanced = {course['time'] / h['time']:.2f}; marginals course/GTSAM = "
+              f"{course['marg_time'] / g['marg_time']:.2f}; chi2 course/GTSAM = {course['chi2'] / best:.8f}")
         rows.append((name, res))
     return rows
 

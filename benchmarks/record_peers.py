@@ -45,7 +45,8 @@ try:  # as a script (benchmarks/ on sys.path) or imported by the tests (benchmar
 except ImportError:
     from benchmarks import peer_runs
 from helpers import datasets
-from helpers.graph import VertexPointXY, VertexSE2Exp
+from helpers.advanced.fast_graph import VertexSE2Exp
+from helpers.graph import VertexPointXY
 from helpers.recorded_peers import CONVERGENCE, RESULTS_FILE, STATE_FILE, load_recorded_peers
 from helpers.paths import data_path
 

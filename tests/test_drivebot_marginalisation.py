@@ -5,7 +5,8 @@ import pytest
 from helpers.drivebot import marginalisation as mg
 from helpers.drivebot import run_question
 from helpers.drivebot.edges import LandmarkVertex
-from helpers.graph import EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2, VertexSE2Exp
+from helpers.graph import EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
+from helpers.advanced.fast_graph import VertexSE2Exp
 
 
 def _spd(n, rng):

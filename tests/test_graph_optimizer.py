@@ -3,19 +3,17 @@
 import numpy as np
 import pytest
 
-from helpers.graph import (BaseEdge, EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
-                           EdgeSE2Prior,
-                           GaugeFreedomError, GraphError, SparseOptimizer, VertexPointXY, VertexSE2, VertexSE2Exp,
-                           wrap_angle)
+from helpers.graph import (BaseEdge, EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, GraphError, SparseOptimizer, VertexPointXY, VertexSE2, wrap_angle)
+from helpers.advanced.fast_graph import FastOptimizer, VertexSE2Exp
 
 
-def small_slam(seed=0, n_poses=6, n_points=4, fix_first=True, pose_class=VertexSE2):
+def small_slam(seed=0, n_poses=6, n_points=4, fix_first=True, pose_class=VertexSE2, optimizer=SparseOptimizer):
     """Noisy poses on a circle, points around it, odometry + range-bearing + one GPS + one compass edge."""
     rng = np.random.default_rng(seed)
     ang = np.linspace(0, 1.5 * np.pi, n_poses)
     truth = np.c_[5 * np.cos(ang), 5 * np.sin(ang), wrap_angle(ang + np.pi / 2)]
     pts = rng.uniform(-7, 7, (n_points, 2))
-    g = SparseOptimizer()
+    g = optimizer()
     poses = [pose_class(i, truth[i] + rng.normal(0, [0.3, 0.3, 0.1]), fixed=(fix_first and i == 0))
              for i in range(n_poses)]
     lms = [VertexPointXY(j, pts[j] + rng.normal(0, 0.5, 2)) for j in range(n_points)]
@@ -98,8 +96,8 @@ def test_lm_and_gn_reach_the_same_optimum_as_dense_reference():
 
 @pytest.mark.parametrize("algorithm", ["gn", "lm", "lm-gtsam", "default"])
 def test_optimize_after_hessian_factors_reuses_its_work_and_gives_the_same_numbers(algorithm):
-    fresh, poses_fresh, _ = small_slam(seed=2)
-    warm, poses_warm, _ = small_slam(seed=2)
+    fresh, poses_fresh, _ = small_slam(seed=2, optimizer=FastOptimizer)
+    warm, poses_warm, _ = small_slam(seed=2, optimizer=FastOptimizer)
     for g in (fresh, warm):
         g.initialize_optimization()
     lower, d, perm = warm.hessian_factors()                 # H at the start: linearised and factorised once
@@ -110,25 +108,25 @@ def test_optimize_after_hessian_factors_reuses_its_work_and_gives_the_same_numbe
     if algorithm == "gn":                                    # its one undamped solve used the factorisation above
         assert warm.linear_solver.factorisations == count
     # a factorisation of another matrix in between: optimize must not take the solver's factor as H's
-    other, poses_other, _ = small_slam(seed=2)
+    other, poses_other, _ = small_slam(seed=2, optimizer=FastOptimizer)
     other.initialize_optimization()
     other.hessian_factors()
     solver = other.linear_solver
     solver.factor(solver.pattern, 2.0 * other._current_linear_system().hessian_data)
-    assert other.optimize(1, algorithm="gn") == small_slam_gn_once(2)
+    assert other.optimize(1, algorithm="gn") == small_slam_gn_once(2, FastOptimizer)
     # an estimate changed after hessian_factors: the cached linearisation is not used
-    moved, poses_moved, _ = small_slam(seed=2)
+    moved, poses_moved, _ = small_slam(seed=2, optimizer=FastOptimizer)
     moved.initialize_optimization()
     moved.hessian_factors()
     poses_moved[1].set_estimate(poses_moved[1].estimate + 0.01)
-    reference, poses_reference, _ = small_slam(seed=2)
+    reference, poses_reference, _ = small_slam(seed=2, optimizer=FastOptimizer)
     reference.initialize_optimization()
     poses_reference[1].set_estimate(poses_reference[1].estimate + 0.01)
     assert moved.optimize(1, algorithm="gn") == reference.optimize(1, algorithm="gn")
 
 
-def small_slam_gn_once(seed):
-    g, _, _ = small_slam(seed=seed)
+def small_slam_gn_once(seed, optimizer=SparseOptimizer):
+    g, _, _ = small_slam(seed=seed, optimizer=optimizer)
     g.initialize_optimization()
     return g.optimize(1, algorithm="gn")
 
@@ -352,7 +350,7 @@ def test_other_algorithms_and_exp_update_reach_the_same_optimum(algorithm, pose_
     g_ref, poses_ref, _ = small_slam(seed=8)
     g_ref.initialize_optimization()
     chi_ref = g_ref.optimize(100, algorithm="gn")
-    g, poses, _ = small_slam(seed=8, pose_class=pose_class)
+    g, poses, _ = small_slam(seed=8, pose_class=pose_class, optimizer=FastOptimizer)
     g.initialize_optimization()
     assert g.optimize(100, algorithm=algorithm) == pytest.approx(chi_ref, rel=1e-6)
     for a, b in zip(poses, poses_ref):
@@ -379,7 +377,7 @@ def test_exp_update_matches_gtsam_retract_and_its_jacobian():
 def test_pose_graph_marginals_equal_dense_inverse(pose_class):
     """Pose graph (all free vertices of dimension 3) and the same graph with a point: compare with dense algebra."""
     rng = np.random.default_rng(12)
-    g = SparseOptimizer()
+    g = FastOptimizer() if pose_class is VertexSE2Exp else SparseOptimizer()
     poses = [pose_class(i, [i + rng.normal(0, 0.1), rng.normal(0, 0.1), rng.normal(0, 0.05)], fixed=(i == 0))
              for i in range(12)]
     for v in poses:
@@ -411,7 +409,7 @@ def test_pose_graph_marginals_equal_dense_inverse(pose_class):
 def test_ldl_solver_and_sparse_inverse_against_dense():
     """qdldl factorisation (permutation convention included): solve and the Takahashi entries equal dense algebra;
     an indefinite or singular matrix is reported (ok False, NaN solution); a refactorisation reuses the solver."""
-    from helpers.graph.linear import HessianPattern, LDLSolver
+    from helpers.advanced.fast_graph.linear import HessianPattern, LDLSolver
     from helpers.graph.marginals import sparse_inverse_on_pattern
     rng = np.random.default_rng(3)
     n = 30
@@ -428,8 +426,8 @@ def test_ldl_solver_and_sparse_inverse_against_dense():
     np.testing.assert_allclose(solver.solve(b), np.linalg.solve(H, b), rtol=1e-10, atol=1e-12)
     Z = np.linalg.inv(H)
     r, c = pairs[:, 0], pairs[:, 1]
-    np.testing.assert_allclose(sparse_inverse_on_pattern(solver, r, c), Z[r, c], rtol=1e-9, atol=1e-14)
-    np.testing.assert_allclose(sparse_inverse_on_pattern(solver, c, r), Z[r, c], rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(sparse_inverse_on_pattern(solver.qdldl, r, c), Z[r, c], rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(sparse_inverse_on_pattern(solver.qdldl, c, r), Z[r, c], rtol=1e-9, atol=1e-14)
     # damping only changes the diagonal: same pattern, same qdldl.Solver, new numbers
     damped = data.copy()
     damped[pattern.diag_pos] += 2.5
@@ -450,7 +448,7 @@ def test_ldl_solver_and_sparse_inverse_against_dense():
 def test_ldl_solver_damped_psd_matrix_skips_the_pivot_check_but_stays_exact():
     """H = JᵀJ of a rank-deficient J is only semi-definite: undamped it is reported singular; H + μI with a
     declared damping μ is positive definite by construction and solves exactly; a negligible μ is still checked."""
-    from helpers.graph.linear import HessianPattern, LDLSolver
+    from helpers.advanced.fast_graph.linear import HessianPattern, LDLSolver
     rng = np.random.default_rng(5)
     n = 12
     J = rng.normal(size=(8, n))  # rank 8 < 12

@@ -5,16 +5,20 @@ leaves the last accepted state in the vertices; a second optimize reaches the un
 import numpy as np
 import pytest
 
-from helpers.graph import (EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2, GaussNewtonParams,
-                           GraphError, GTSAMLevenbergMarquardtParams, SparseOptimizer, VertexPointXY, VertexSE2,
-                           wrap_angle)
-from helpers.graph.algorithms import Trial
+from helpers.graph import (EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2, GraphError, SparseOptimizer, VertexPointXY, VertexSE2, wrap_angle)
+from helpers.advanced.fast_graph import FastOptimizer, GTSAMLevenbergMarquardtParams
+from helpers.advanced.fast_graph.algorithms import Trial
 from helpers.graph.errors import NonFiniteError
 
-ALGORITHMS = ["lm", "gn", "lm-gtsam"]
+#: (graph class, algorithm): the course's LM and Gauss–Newton, and the advanced optimiser's GTSAM schedule
+ALGORITHMS = [(SparseOptimizer, "lm"), (SparseOptimizer, "gn"), (FastOptimizer, "lm-gtsam")]
+IDS = ["lm", "gn", "fast-lm-gtsam"]
 #: the same algorithms run to round-off (zero stopping tolerances), so that two paths end at the same optimum
-TIGHT = {"lm": "lm", "gn": GaussNewtonParams(tolerance=1e-12, min_step_fraction=1e-3),
-         "lm-gtsam": GTSAMLevenbergMarquardtParams(relative_tolerance=0.0, absolute_tolerance=0.0)}
+TIGHT = {"lm": {"algorithm": "lm"}, "gn": {"algorithm": "gn", "gn_tolerance": 1e-12},
+         "lm-gtsam": {"algorithm": GTSAMLevenbergMarquardtParams(relative_tolerance=0.0, absolute_tolerance=0.0)}}
+#: where each graph class keeps its trial protocol: (owner, try, accept, reject, attribute of the accepted χ²)
+PROTOCOL = {SparseOptimizer: (SparseOptimizer, "_try_step", "_accept", "_reject", "_chi2"),
+            FastOptimizer: (Trial, "try_step", "accept", "reject", "chi2")}
 QUIET = {"divide": "ignore", "invalid": "ignore", "over": "ignore"}
 
 
@@ -50,14 +54,14 @@ class Faulty(EdgeRangeBearing):
         return e, jac
 
 
-def slam(seed=0, rb_class=EdgeRangeBearing, point_class=VertexPointXY, edits=None, noise=1.0):
+def slam(seed=0, rb_class=EdgeRangeBearing, point_class=VertexPointXY, edits=None, noise=1.0, optimizer=SparseOptimizer):
     """Poses on an arc (pose 0 fixed), points around it, odometry, range-bearing, one GPS (lever arm) and one
     compass (offset) edge, with a poor initial guess. ``edits(parts)`` runs before returning."""
     rng = np.random.default_rng(seed)
     ang = np.linspace(0, 1.2 * np.pi, 6)
     truth = np.c_[4 * np.cos(ang), 4 * np.sin(ang), wrap_angle(ang + np.pi / 2)]
     pts = rng.uniform(-6, 6, (4, 2))
-    g = SparseOptimizer()
+    g = optimizer()
     poses = [VertexSE2(i, truth[i] + noise * rng.normal(0, [0.6, 0.6, 0.3]) * (i > 0), fixed=(i == 0))
              for i in range(6)]
     points = [point_class(j, pts[j] + rng.normal(0, 1.0, 2)) for j in range(4)]
@@ -106,13 +110,13 @@ EDITS = {
 }
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
+@pytest.mark.parametrize("optimizer, algorithm", ALGORITHMS, ids=IDS)
 @pytest.mark.parametrize("edit", sorted(EDITS))
-def test_edit_after_initialisation_equals_a_rebuilt_graph(edit, algorithm):
-    edited = slam()
+def test_edit_after_initialisation_equals_a_rebuilt_graph(edit, optimizer, algorithm):
+    edited = slam(optimizer=optimizer)
     edited["g"].initialize_optimization()
     EDITS[edit](edited)                                       # after initialize_optimization
-    rebuilt = slam(edits=EDITS[edit])                         # before it
+    rebuilt = slam(edits=EDITS[edit], optimizer=optimizer)    # before it
     rebuilt["g"].initialize_optimization()
     a, b = edited["g"], rebuilt["g"]
     assert a.chi2() == b.chi2()
@@ -188,10 +192,10 @@ CAUSES = {"landmark-at-pose": _landmark_at_pose, "huge-estimate": _huge_estimate
           "user-error-nan": _user_edge(NanErrorEdge), "user-jacobian-nan": _user_edge(NanJacobianEdge)}
 
 
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
+@pytest.mark.parametrize("optimizer, algorithm", ALGORITHMS, ids=IDS)
 @pytest.mark.parametrize("cause", sorted(CAUSES))
-def test_non_finite_at_the_start_raises_naming_the_edges(cause, algorithm):
-    p = slam()
+def test_non_finite_at_the_start_raises_naming_the_edges(cause, optimizer, algorithm):
+    p = slam(optimizer=optimizer)
     bad, pattern = CAUSES[cause](p)
     g = p["g"]
     g.initialize_optimization()
@@ -291,41 +295,45 @@ def with_saturating_heading(p):
     p["g"].add_edge(p["saturating"])
 
 
-def reference_run(algorithm, monkeypatch):
+def reference_run(optimizer, algorithm, monkeypatch):
     """Uninterrupted run with Faulty edges and the saturating heading edge: (snapshots [(calls when accepted,
     estimates)], rejected trials [(calls, relative χ² increase of the trial)], final χ², final estimates, total
     calls)."""
-    p = slam(seed=1, rb_class=Faulty, edits=with_saturating_heading)
+    p = slam(seed=1, rb_class=Faulty, edits=with_saturating_heading, optimizer=optimizer)
     g = p["g"]
     g.initialize_optimization()
     Injection.arm()
     snapshots, rejected, tried = [(0, estimates(g))], [], {}
-    try_step, accept, reject = Trial.try_step, Trial.accept, Trial.reject
+    owner, try_name, accept_name, reject_name, chi2_name = PROTOCOL[optimizer]
+    try_step, accept, reject = (getattr(owner, n) for n in (try_name, accept_name, reject_name))
 
     def recording_try_step(self, dx):
         tried["chi2"] = try_step(self, dx)
         return tried["chi2"]
 
     def recording_accept(self, chi2):
+        tried.pop("chi2", None)
         accept(self, chi2)
         snapshots.append((Injection.calls, estimates(g)))
 
     def recording_reject(self):
-        rejected.append((Injection.calls, (tried["chi2"] - self.chi2) / self.chi2))
+        if "chi2" in tried:                                    # (the course's final return to X is no rejection)
+            accepted = getattr(self, chi2_name)
+            rejected.append((Injection.calls, (tried.pop("chi2") - accepted) / accepted))
         reject(self)
 
     with monkeypatch.context() as m:
-        m.setattr(Trial, "try_step", recording_try_step)
-        m.setattr(Trial, "accept", recording_accept)
-        m.setattr(Trial, "reject", recording_reject)
-        chi2 = g.optimize(100, algorithm=TIGHT[algorithm])
+        m.setattr(owner, try_name, recording_try_step)
+        m.setattr(owner, accept_name, recording_accept)
+        m.setattr(owner, reject_name, recording_reject)
+        chi2 = g.optimize(100, **TIGHT[algorithm])
     return snapshots, rejected, chi2, estimates(g), Injection.calls
 
 
 @pytest.mark.parametrize("mode", ["raise", "interrupt", "nan"])
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
-def test_failure_at_the_kth_evaluation_restores_the_last_accepted_state(algorithm, mode, monkeypatch):
-    snapshots, rejected, chi2_ref, final_ref, total = reference_run(algorithm, monkeypatch)
+@pytest.mark.parametrize("optimizer, algorithm", ALGORITHMS, ids=IDS)
+def test_failure_at_the_kth_evaluation_restores_the_last_accepted_state(optimizer, algorithm, mode, monkeypatch):
+    snapshots, rejected, chi2_ref, final_ref, total = reference_run(optimizer, algorithm, monkeypatch)
     # the premise, built with a wide margin (SaturatingHeading): the run rejects a trial that raised χ² by ≥ 10 %,
     # an event round-off cannot undo; the failures are injected at every such trial
     wide = {calls for calls, rise in rejected if rise >= WIDE_REJECTION}
@@ -333,16 +341,16 @@ def test_failure_at_the_kth_evaluation_restores_the_last_accepted_state(algorith
     ks = sorted(set(range(1, min(total, 40) + 1)) | set(range(40, total + 1, 5)) | {c for c, _ in rejected})
     expected_error = {"raise": InjectedError, "interrupt": KeyboardInterrupt, "nan": NonFiniteError}[mode]
     for k in ks:
-        p = slam(seed=1, rb_class=Faulty, edits=with_saturating_heading)
+        p = slam(seed=1, rb_class=Faulty, edits=with_saturating_heading, optimizer=optimizer)
         g = p["g"]
         g.initialize_optimization()
         Injection.arm(fail_at=k, mode=mode)
         with pytest.raises(expected_error):
-            g.optimize(100, algorithm=TIGHT[algorithm])
+            g.optimize(100, **TIGHT[algorithm])
         last_accepted = [s for calls, s in snapshots if calls < k][-1]
         assert estimates(g) == last_accepted, f"call {k}"
         Injection.arm()
-        chi2 = g.optimize(100, algorithm=TIGHT[algorithm])
+        chi2 = g.optimize(100, **TIGHT[algorithm])
         # both runs end at the same optimum to their stopping tolerances (zero or 1e-12): χ² is flat there, so it
         # agrees to ~κ·ε² relative; the estimates to ~√(ε_stop)·scale: rel 1e-9 and 1e-7 leave wide margins
         assert chi2 == pytest.approx(chi2_ref, rel=1e-9), f"call {k}"
@@ -366,17 +374,19 @@ class FaultyPoint(VertexPointXY):
 
 
 @pytest.mark.parametrize("how, error", [("raise", InjectedError), ("shape", GraphError), ("nan", NonFiniteError)])
-@pytest.mark.parametrize("algorithm", ALGORITHMS)
+@pytest.mark.parametrize("optimizer, algorithm", ALGORITHMS, ids=IDS)
 @pytest.mark.parametrize("fail_at", [1, 2, 4])
-def test_failing_vertex_update_restores_every_vertex_class(algorithm, how, error, fail_at, monkeypatch):
+def test_failing_vertex_update_restores_every_vertex_class(optimizer, algorithm, how, error, fail_at, monkeypatch):
     """The pose group is moved before the failing point group: the restore must undo it too."""
     FaultyPoint.calls, FaultyPoint.fail_at = 0, None
     snapshots = []
-    accept = Trial.accept
-    p = slam(point_class=FaultyPoint)
+    owner, _, accept_name, _, _ = PROTOCOL[optimizer]
+    accept = getattr(owner, accept_name)
+    p = slam(point_class=FaultyPoint, optimizer=optimizer)
     g = p["g"]
     g.initialize_optimization()
-    monkeypatch.setattr(Trial, "accept", lambda self, chi2: (accept(self, chi2), snapshots.append(estimates(g))))
+    monkeypatch.setattr(owner, accept_name,
+                        lambda self, chi2: (accept(self, chi2), snapshots.append(estimates(g))))
     start = estimates(g)
     FaultyPoint.calls, FaultyPoint.fail_at, FaultyPoint.how = 0, fail_at, how
     with pytest.raises(error, match="oplus"):

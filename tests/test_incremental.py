@@ -8,7 +8,7 @@ from helpers.graph import (EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GraphError, 
                            VertexPointXY, VertexSE2)
 from helpers.advanced.chain_factor import ChainFactor, add_slot_terms_reference
 from helpers.advanced.chain_kernel import add_slot_terms
-from helpers.advanced.drivebot_incremental import run_incremental
+from helpers.advanced.drivebot_variants import run_incremental
 from helpers.advanced.incremental import IncrementalSmoother, NotPositiveDefiniteError
 from helpers.drivebot import run_question
 

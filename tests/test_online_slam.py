@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from helpers.graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
+from helpers.graph import EdgeRangeBearing, EdgeSE2, VertexPointXY, VertexSE2
+from helpers.advanced.fast_graph import FastOptimizer
 from helpers.advanced.online_slam import (ALGORITHMS, ConfirmationRules, OnlineFrontEnd, RangeBearingModel,
                                  association_scores, best_matching)
 from helpers.advanced.online_slam.covariance import MarginalColumns, hessian_factors, ldl_solve_columns
@@ -24,7 +25,7 @@ class World:
 
     def __init__(self, landmarks, algorithm="jcbb", rules=None, max_range=6.0, noise=0.0, seed=0, **options):
         self.landmarks = np.asarray(landmarks, dtype=float)
-        self.graph = SparseOptimizer()
+        self.graph = FastOptimizer()
         self.truth_pose = np.zeros(3)
         first = VertexSE2(None, np.zeros(3), fixed=True)
         self.graph.add_vertex(first)
@@ -82,7 +83,7 @@ LANDMARKS = [(1.0, 2.0), (3.0, -2.5), (5.0, 1.5), (7.5, -1.0), (9.0, 2.5), (11.0
 
 # ------------------------------------------------------------------------------------------ covariance
 def _small_graph():
-    g = SparseOptimizer()
+    g = FastOptimizer()
     poses = [VertexSE2(None, [k * 1.0, 0.1 * k, 0.05 * k], fixed=(k == 0)) for k in range(5)]
     for v in poses:
         g.add_vertex(v)
@@ -273,7 +274,7 @@ def test_motion_jacobians_of_a_between_edge():
     z = np.array([1.0, 0.2, 0.1])
     c, s = math.cos(0.3), math.sin(0.3)
     b.set_estimate([c - 0.2 * s, s + 0.2 * c, 0.4])
-    g = SparseOptimizer()
+    g = FastOptimizer()
     g.add_vertex(a)
     g.add_vertex(b)
     e = EdgeSE2([a, b], measurement=z, information=ODO_INFO)
@@ -390,7 +391,7 @@ def test_metrics_on_hand_made_cases():
 
 # ------------------------------------------------------------------------------------------ bad input
 def test_bad_input_names_the_argument():
-    g = SparseOptimizer()
+    g = FastOptimizer()
     model = RangeBearingModel(5.0)
     with pytest.raises(ValueError, match="data_association"):
         OnlineFrontEnd(g, model, "icp")

@@ -92,7 +92,8 @@ def _recorded_unit_run(monkeypatch, ci, machine="x86_64"):
         monkeypatch.delenv(name, raising=False)
     monkeypatch.setattr(workbook, "run", lambda cmd, env=None, check=True: calls.append(([str(c) for c in cmd], env)))
     workbook.test_unit()
-    return calls
+    assert calls[0][0][1:4] == ["-m", "ruff", "check"]      # the linter runs first, once
+    return calls[1:]
 
 
 def test_ci_runs_the_unit_tests_again_on_each_lowered_cpu(monkeypatch):

@@ -263,12 +263,18 @@ def test_unit():
     if STUDENT_EDITION:  # unfinished exercises are expected: only the other tests can fail this
         run([venv_python(), "tools/grade.py", "--student-ok", "--status", GRADE_STATUS], env=tool_env())
         return
+    lint()
     unit_tests()
     if in_ci():
         for label, env in cpu_passes():
             print("unit tests again with %s, without the %s tests" % (describe(label, env), CPU_INDEPENDENT),
                   flush=True)
             unit_tests(env, ["-m", "not " + CPU_INDEPENDENT])
+
+
+def lint():
+    """ruff over the Python sources, with the rules of pyproject.toml ([tool.ruff])."""
+    run([venv_python(), "-m", "ruff", "check", "helpers", "tests", "tools", "benchmarks"], env=tool_env())
 
 
 def unit_tests(env=None, select=()):

@@ -8,5 +8,5 @@ notebooks (22, 23) and ``benchmarks/`` do. It builds on the course modules:
 - ``hidden_ids``: DriveBot with the landmark ids hidden (``run_hidden_ids``, ``association_report``), and
   ``hidden_ids_support`` for notebook 22;
 - ``incremental`` (with ``chain_factor`` and ``chain_kernel``): optimising after every addition with a factor kept
-  between updates (iSAM2's relinearisation rule); ``drivebot_incremental`` runs DriveBot with it.
+  between updates (iSAM2's relinearisation rule); ``drivebot_variants`` runs DriveBot with it.
 """

@@ -26,8 +26,8 @@ import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.linalg.lapack import dtbtrs
 
-from .chain_kernel import eliminate_chain, solve_chain
 from ..graph.errors import GraphError
+from .chain_kernel import eliminate_chain, solve_chain
 
 __all__ = ["ChainFactor", "NotPositiveDefiniteError", "add_slot_terms_reference"]
 

@@ -59,6 +59,7 @@ from ..drivebot.edges import LandmarkVertex
 from ..drivebot.events import Event, EventType
 from ..drivebot.runner import Results, question_setup, run_question
 from ..drivebot.slam_system import DriveBotSLAMSystem
+from .fast_graph import FastOptimizer
 
 __all__ = ["AssociatingSLAMSystem", "SensorCorruption", "HiddenIds", "association_report", "ASSOCIATION_OPTIONS",
            "run_hidden_ids"]
@@ -120,8 +121,11 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
     ``association_iterations`` (used only when ``optimization_period`` is None), ``association_algorithm``,
     ``range_margin``, ``association_space``, ``reject_ambiguous``, ``closure_sigma``, ``closure_support``,
     ``closure_patience``, ``verify_merges``, ``verify_n_sigma`` (see ``OnlineFrontEnd``). The front-end is
-    ``self.frontend``; confirmed landmarks appear in ``landmark_vertices`` under key + 1.
+    ``self.frontend``; confirmed landmarks appear in ``landmark_vertices`` under key + 1. Its graph is a
+    ``FastOptimizer`` (the front-end reads the LDLᵀ factor of H from it).
     """
+
+    graph_class = FastOptimizer
 
     def __init__(self, config=None, data_association: str = "jcbb", n_sigma: float = 3.0, algorithm_options=None,
                  rules=None, association_period: int = 100, association_iterations: int = 1,

@@ -2,22 +2,21 @@
 results table and the figures.
 
 * ``Runs`` — runs ``run_hidden_ids(question, data_association=..., clutter_rate=...)`` once per setting and keeps a
-  ``Case``: the association report, the graph's χ² degrees of freedom and band, and — for the questions named in
+  ``Case``: the association report, the graph's χ² degrees of freedom, and — for the questions named in
   ``keep`` — the ``Results`` and an ``AssociationRecorder`` (the large map keeps only the numbers).
 * ``AssociationRecorder`` — a ``step_hook`` that records what the front-end knew *online*: the tick of every scan,
   the vehicle's online pose, every new (tentative) landmark placed by the pose estimate of the moment together
   with the map as it was then, and every merge of a tentative landmark into an old one (a loop-closure pairing).
 * ``true_sources`` — the true landmark behind each front-end landmark (the source of its first observation; the
-  front-end never sees it); ``observation_ticks`` and ``chi2_ticks`` — the tick of every observation and of every
-  χ² value.
+  front-end never sees it); ``observation_ticks`` — the tick of every observation.
 * ``revisits`` — new landmarks started for a true landmark that is already in the map: at a loop closure the
   drifted pose places a re-observed landmark metres from its map estimate. Their innovations ν = (where the current
   pose puts it) − (where the map has it) are what the association algorithms are asked to explain.
 * ``closure_pairings`` — each merge, with the true landmarks on both sides: right or wrong; ``closure_outcome``
   sums it up ("right", "wrong" or "none"); ``run_summary`` counts merges and clutter landmarks of any run.
-* ``association_table``, ``seed_table`` — the results as text, every number rounded to what holds across
-  machines (ratios of counts to 3 decimals, χ² to 3 significant figures, map error in cm to 2).
-* ``plot_chi2_traces``, ``plot_final_map``, ``plot_closure`` — the figures.
+* ``association_table`` — the results as text, every number rounded to what holds across machines (ratios of
+  counts to 3 decimals, χ² to 3 significant figures, map error in cm to 2).
+* ``plot_final_map``, ``plot_closure`` — the figures.
 * ``nn_gate`` — the Euclidean gate of the front-end's NN at a range r: n_σ·√(σ_r² + r²σ_β²), the sensor noise alone
   (the pose and map uncertainty ignored), in the Cartesian association space of ``helpers.advanced.online_slam.models``.
 """
@@ -35,15 +34,12 @@ from ..validation import integer, nonnegative_number, positive_number
 from ..drivebot.runner import Results
 from .hidden_ids import association_report, run_hidden_ids
 
-__all__ = ["ALGORITHM_LABELS", "ALGORITHM_STYLES", "Case", "Runs", "AssociationRecorder", "true_sources",
-           "run_summary", "observation_ticks", "chi2_ticks", "revisits", "closure_pairings", "closure_outcome",
-           "nn_gate", "sig", "association_table", "seed_table", "plot_chi2_traces", "plot_final_map", "plot_closure"]
+__all__ = ["ALGORITHM_LABELS", "Case", "Runs", "AssociationRecorder", "true_sources", "run_summary",
+           "observation_ticks", "revisits", "closure_pairings", "closure_outcome", "nn_gate", "sig",
+           "association_table", "plot_final_map", "plot_closure"]
 
 #: How the notebook names the four algorithms.
 ALGORITHM_LABELS = {"nn": "NN (Euclidean)", "mahalanobis": "Mahalanobis NN", "ml": "ML", "jcbb": "JCBB"}
-#: Line colour and style per algorithm (ML dashed: on q2_b it lies on Mahalanobis NN).
-ALGORITHM_STYLES = {"nn": (COLORS["alt"], "-"), "mahalanobis": (COLORS["bound"], "-"), "ml": ("#ff7f0e", "--"),
-                    "jcbb": (COLORS["estimate"], "-")}
 
 
 # ------------------------------------------------------------------------------------------------ recording
@@ -94,7 +90,7 @@ class AssociationRecorder:
 
 @dataclass
 class Case:
-    """One run: its setting, the association report, χ² degrees of freedom and 4σ band, and (if kept) the
+    """One run: its setting, the association report, the graph's χ² degrees of freedom, and (if kept) the
     ``Results`` and the ``AssociationRecorder``; ``extra``: ``run_summary`` of the run."""
 
     question: str
@@ -103,7 +99,6 @@ class Case:
     seed: int
     report: dict
     dof: int
-    chi2_band: tuple
     results: Results | None = None
     recorder: AssociationRecorder | None = None
     extra: dict = field(default_factory=dict)
@@ -146,7 +141,7 @@ class Runs:
                                step_hook=recorder, **self.overrides)
             dof = int(res.graph_statistics()["dof"])
             self._cases[key] = Case(question, algorithm, clutter_rate, seed, association_report(res), dof,
-                                    res.chi2_bounds(), res if keep else None, recorder, run_summary(res))
+                                    res if keep else None, recorder, run_summary(res))
         return self._cases[key]
 
 
@@ -191,17 +186,6 @@ def observation_ticks(case) -> tuple:
     parts = res.setup.scan_truth
     truth = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
     return (ticks[scans] if scans.size else np.zeros(0, dtype=np.int64)), truth
-
-
-def chi2_ticks(results) -> np.ndarray:
-    """The tick of each entry of ``results.chi2_history`` (the ticks at which an optimisation ran, the final one
-    included)."""
-    if not isinstance(results, Results):
-        raise ValueError(f"results must be a Results (from run_question), got {type(results).__name__}")
-    ticks = np.flatnonzero(np.isfinite(results.optimization_times))
-    if ticks.size != results.chi2_history.size:
-        raise ValueError(f"{ticks.size} optimisation ticks for {results.chi2_history.size} χ² values")
-    return ticks
 
 
 def revisits(case, min_innovation: float = 0.0) -> list:
@@ -307,21 +291,6 @@ def association_table(cases) -> str:
     return _rows(header, rows)
 
 
-def seed_table(cases) -> str:
-    """One line per run of a seed sweep: seed, algorithm, precision, recall, landmarks (true), detections never
-    in the map, the loop closure (``closure_outcome``; runs that kept their recorder only)."""
-    header = ["seed", "clutter/scan", "algorithm", "precision", "recall", "landmarks (true)", "detections not mapped",
-              "loop closure"]
-    rows = []
-    for c in cases:
-        r = c.report
-        unmapped = r["n_true_detections"] - (r["n_pairings"] - r["n_clutter_paired"])
-        outcome = closure_outcome(c) if c.recorder is not None else "—"
-        rows.append([c.seed, f"{c.clutter_rate:g}", c.label, _ratio(r["precision"]), _ratio(r["recall"]),
-                     f"{r['n_landmarks']} ({r['n_true_landmarks']})", unmapped, outcome])
-    return _rows(header, rows)
-
-
 # ------------------------------------------------------------------------------------------------ figures
 def _axes(ax):
     if not hasattr(ax, "plot"):
@@ -329,25 +298,10 @@ def _axes(ax):
     return ax
 
 
-def plot_chi2_traces(ax, cases, mark=None):
-    """χ² after each optimisation against time, one line per case (kept runs); ``mark`` (s) draws a dotted line
-    ("landmarks 1 and 2 back in view"). A trace identical to an earlier one says so in its label."""
-    _axes(ax)
-    drawn = []
-    for c in cases:
-        res = _kept(c, "plot_chi2_traces")[0]
-        color, ls = ALGORITHM_STYLES[c.algorithm]
-        label = c.label
-        same = [d.label for d in drawn if d.results.chi2_history.shape == res.chi2_history.shape
-                and np.array_equal(d.results.chi2_history, res.chi2_history)]
-        if same:
-            label += f" (identical to {same[0]})"
-        ax.plot(res.chi2_time, res.chi2_history, ls, color=color, lw=2.2 if ls == "--" else 1.4, label=label)
-        drawn.append(c)
-    if mark is not None:
-        ax.axvline(float(mark), color=COLORS["muted"], ls=":", lw=1.2, label="landmarks 1 and 2 back in view")
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("χ² after the optimisation")
+def _metric_axes(ax):
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
 
 
 def _sources_at(mapped, src, sources):
@@ -377,9 +331,7 @@ def plot_final_map(ax, case):
         if s in true_pos:
             ax.plot(*np.c_[p, true_pos[s]], ":", color=COLORS["bound"], lw=0.8)
         first = False
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
+    _metric_axes(ax)
 
 
 def plot_closure(ax, case, margin: float = 1.5):
@@ -439,7 +391,5 @@ def plot_closure(ax, case, margin: float = 1.5):
     lo, hi = pts.min(axis=0) - margin, pts.max(axis=0) + margin
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
+    _metric_axes(ax)
     return seen

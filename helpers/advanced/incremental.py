@@ -32,14 +32,14 @@ the next update starts afresh.
 
 import numpy as np
 
+from ..graph.edge import check_model_output
+from ..graph.elements import nonfinite_error, total_chi2
+from ..graph.errors import GraphError
+from ..graph.storage import GrowableArray
+from ..graph.vertex import BaseVertex
 from ..validation import integer, nonnegative_number
 from .chain_factor import ChainFactor, NotPositiveDefiniteError
 from .chain_kernel import add_slot_terms
-from ..graph.edge import check_model_output
-from ..graph.errors import GraphError
-from ..graph.linearise import nonfinite_error, total_chi2
-from ..graph.storage import GrowableArray
-from ..graph.vertex import BaseVertex
 
 __all__ = ["IncrementalSmoother", "NotPositiveDefiniteError"]
 

@@ -41,11 +41,12 @@ def read_dataset(name):
     return _READERS[_known(name)](dataset_path(name))
 
 
-def load_dataset(name, pose_class=VertexSE2):
-    """SparseOptimizer for a shipped dataset (``sorted(DATASETS)``), first pose fixed (or the file's FIX
-    vertices), structure built."""
+def load_dataset(name, pose_class=VertexSE2, optimizer_class=None):
+    """A graph (``optimizer_class``, default the course's SparseOptimizer) for a shipped dataset
+    (``sorted(DATASETS)``), first pose fixed (or the file's FIX vertices), structure built."""
     check_pose_class(pose_class)
     data = read_dataset(name)
-    opt = build_optimizer(data, pose_class=pose_class)
+    opt = build_optimizer(data, pose_class=pose_class, **({} if optimizer_class is None else
+                                                          {"optimizer_class": optimizer_class}))
     opt.initialize_optimization()
     return opt

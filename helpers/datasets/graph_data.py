@@ -4,6 +4,7 @@ import numpy as np
 
 from ..graph import (EdgeRangeBearing, EdgeSE2, EdgeSE2PointXY, SparseOptimizer, VertexPointXY, VertexSE2,
                      wrap_angle)
+from ..graph.elements import GraphElements
 from .records import DatasetFormatError
 
 __all__ = ["GraphData", "build_optimizer", "pose_arrays", "merge_in_file_order", "initial_values",
@@ -140,17 +141,18 @@ def _check_build_arguments(data, fix_first, pose_class):
                              f"{sorted(_KINDS)}, got {e!r}")
 
 
-def build_optimizer(data, fix_first=True, pose_class=VertexSE2):
-    """A SparseOptimizer holding the dataset (pose vertices ``pose_class``, points VertexPointXY).
-
-    ``pose_class=VertexSE2Exp`` gives GTSAM's Pose2 update (exponential map) instead of the coursework's additive one.
-    """
+def build_optimizer(data, fix_first=True, pose_class=VertexSE2, optimizer_class=SparseOptimizer):
+    """An ``optimizer_class`` graph (default: the course's SparseOptimizer) holding the dataset (pose vertices
+    ``pose_class``, a VertexSE2 subclass; points VertexPointXY)."""
     _check_build_arguments(data, fix_first, pose_class)
+    if not (isinstance(optimizer_class, type) and issubclass(optimizer_class, GraphElements)):
+        raise ValueError(f"optimizer_class must be a graph class (SparseOptimizer or a subclass of GraphElements), "
+                         f"got {optimizer_class!r}")
     poses, points = initial_values(data)
     for fid in data.fixed:
         if fid not in poses and fid not in points:
             raise ValueError(f"data.fixed: {fid!r} is neither a pose nor a point id of {data.source}")
-    opt = SparseOptimizer()
+    opt = optimizer_class()
     pv, lv = {}, {}
     for pid in sorted(poses):
         v = pose_class(pid, poses[pid])

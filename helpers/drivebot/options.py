@@ -87,7 +87,7 @@ _OPTION_CHECKS = {
     "keep_first_prediction_edge": lambda system, value: boolean(value, "keep_first_prediction_edge"),
     "pre_optimization_hook": lambda system, value: function(value, "pre_optimization_hook", allow_none=True),
     "optimization_algorithm": lambda system, value: one_of(value, "optimization_algorithm",
-                                                           ("lm", "gn", "lm-gtsam")),
+                                                           system.graph_class.ALGORITHMS),
 }
 
 

@@ -161,9 +161,8 @@ class OnlineRecorder:
         k = integer(k, "k", minimum=0)
         optimised = system.recommend_optimization()
         if optimised:
-            solver = system.graph.linear_solver
-            if solver.qdldl is not None:
-                self.factor_nnz[int(k)] = int(solver.qdldl.factors()[0].nnz)
+            if system.graph.factor is not None:          # the LDLᵀ factor of the last optimisation
+                self.factor_nnz[int(k)] = int(system.graph.factor.factors()[0].nnz)
         if system.step_number % self.every == 0:
             _, P = system.platform_estimate()
             self._ticks.append(int(k))

@@ -66,9 +66,13 @@ class DriveBotSLAMSystem:
     remove_prediction_edges, keep_first_prediction_edge : Q3a — before every optimisation remove all
         kinematics edges (or all but the first).
     pre_optimization_hook : callable(system) run before every optimisation (e.g. a Q3b pruning heuristic).
-    optimization_algorithm : "lm" (the coursework's Levenberg–Marquardt, default), "gn", "lm-gtsam"
-        (GTSAM's LM schedule and relative stopping rule; for like-for-like comparisons with GTSAM).
+    optimization_algorithm : "lm" (the coursework's Levenberg–Marquardt, default) or "gn" (Gauss–Newton); one of
+        ``graph_class.ALGORITHMS``.
+
+    ``graph_class`` (class attribute): the graph the system builds, ``helpers.graph.SparseOptimizer``.
     """
+
+    graph_class = SparseOptimizer
 
     def __init__(self, config: SimulatorConfiguration | None = None, optimization_period=None,
                  compass_edge: str = "fixed", remove_prediction_edges: bool = False,
@@ -84,7 +88,7 @@ class DriveBotSLAMSystem:
         self.keep_first_prediction_edge = keep_first_prediction_edge
         self.pre_optimization_hook = pre_optimization_hook
         self.optimization_algorithm = optimization_algorithm
-        self.graph = SparseOptimizer()
+        self.graph = self.graph_class()
         self.vehicle_vertices: list[VehicleVertex] = []
         self.process_model_edges: list[VehicleKinematicsEdge] = []
         self.landmark_vertices: dict[int, LandmarkVertex] = {}

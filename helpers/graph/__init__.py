@@ -48,15 +48,20 @@ accepted state. ``SparseOptimizer`` (``optimizer``) documents the rest of the AP
 
 from .angles import wrap_angle, wrap_angle_mod
 from .edge import BaseEdge, batch_matrix, check_information, information_from_covariance, numeric_jacobians
-from .edges2d import (EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
-                      EdgeSE2PointXY, EdgeSE2Prior)
+from .edges2d import (
+                      EdgeHeadingPrior,
+                      EdgePointPrior,
+                      EdgePositionPrior,
+                      EdgeRangeBearing,
+                      EdgeSE2,
+                      EdgeSE2PointXY,
+                      EdgeSE2Prior,
+)
 from .errors import GaugeFreedomError, GraphError, NonFiniteError
-from .algorithms import GaussNewtonParams, GTSAMLevenbergMarquardtParams, LevenbergMarquardtParams
-from .algorithms_default import DefaultParams
 from .optimizer import SparseOptimizer
-from .vertex import BaseVertex, VertexPointXY, VertexSE2, VertexSE2Exp
+from .vertex import BaseVertex, VertexPointXY, VertexSE2
 
-__all__ = ["DefaultParams", "GaussNewtonParams", "LevenbergMarquardtParams", "GTSAMLevenbergMarquardtParams", "wrap_angle", "wrap_angle_mod", "BaseVertex", "VertexSE2", "VertexSE2Exp", "VertexPointXY", "BaseEdge",
-           "check_information", "information_from_covariance", "batch_matrix", "numeric_jacobians", "EdgeSE2", "EdgeSE2Prior", "EdgePositionPrior",
-           "EdgeHeadingPrior", "EdgeRangeBearing", "EdgePointPrior", "EdgeSE2PointXY", "SparseOptimizer", "GraphError",
-           "GaugeFreedomError", "NonFiniteError"]
+__all__ = ["wrap_angle", "wrap_angle_mod", "BaseVertex", "VertexSE2", "VertexPointXY", "BaseEdge", "check_information",
+           "information_from_covariance", "batch_matrix", "numeric_jacobians", "EdgeSE2", "EdgeSE2Prior",
+           "EdgePositionPrior", "EdgeHeadingPrior", "EdgeRangeBearing", "EdgePointPrior", "EdgeSE2PointXY",
+           "SparseOptimizer", "GraphError", "GaugeFreedomError", "NonFiniteError"]

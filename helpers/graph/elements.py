@@ -14,12 +14,12 @@ Every method validates its arguments before it changes anything, so a rejected c
 import numpy as np
 
 from ..validation import integer
-from .edge import BaseEdge, check_information_batch
-from .errors import GraphError
+from .edge import BaseEdge, check_information_batch, check_model_output, edge_label
+from .errors import GraphError, NonFiniteError
 from .storage import EdgeStore, VertexStore
 from .vertex import BaseVertex
 
-__all__ = ["GraphElements"]
+__all__ = ["GraphElements", "total_chi2", "nonfinite_error"]
 
 
 class GraphElements:
@@ -337,3 +337,37 @@ def _numeric(value, name):
         return np.array(value, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"add_edges: {name} must be numeric, got {value!r}") from None
+
+
+def total_chi2(vertex_store, edge_stores) -> float:
+    """χ² = Σ eᵀΩe over the live edges of ``edge_stores`` at the stored estimates (no layout needed);
+    NonFiniteError naming the edges whose term is NaN or inf."""
+    total, bad = 0.0, []
+    estimates = vertex_store.estimates.buffer
+    for store in edge_stores.values():
+        rows = store.alive_rows()
+        if len(rows) == 0:
+            continue
+        handles = store.handles.values[rows]
+        states = [estimates[vertex_store.state_indices(handles[:, k], d)] for k, d in enumerate(store.slot_dimensions)]
+        params = {name: column.values[rows] for name, column in store.params.items()}
+        e, _ = store.cls.evaluate(states, store.measurements.values[rows], params, jacobians=False)
+        check_model_output(store.cls, e, None, len(rows), False)
+        r = np.einsum("eij,ej->ei", store.whitening.values[rows], e)
+        terms = np.einsum("ei,ei->e", r, r)
+        total += float(terms.sum())
+        bad += [store.objects[row] for row in rows[~np.isfinite(terms)]]
+    if not np.isfinite(total):
+        raise nonfinite_error("chi2", bad)
+    return total
+
+
+def nonfinite_error(what: str, edges: list) -> NonFiniteError:
+    """The NonFiniteError for ``what`` (e.g. "optimize: at the initial estimates") naming up to 5 of ``edges``."""
+    if not edges:
+        return NonFiniteError(f"{what}: χ², H or b is not finite although every edge's term is: the sum "
+                              "overflowed (check the scale of the estimates and information matrices)")
+    names = "; ".join(edge_label(e) for e in edges[:5]) + ("" if len(edges) <= 5 else f"; … ({len(edges)} edges)")
+    return NonFiniteError(f"{what}: {len(edges)} edge(s) have a non-finite (NaN or inf) error, χ² term or "
+                          f"Jacobian: {names}. Look for a degenerate configuration (e.g. a landmark exactly at a "
+                          "pose), an overflowing estimate, or a model that returns NaN.", edges)

@@ -18,7 +18,7 @@ import numpy as np
 from ..validation import boolean
 from .angles import wrap_angle
 
-__all__ = ["BaseVertex", "VertexSE2", "VertexSE2Exp", "VertexPointXY"]
+__all__ = ["BaseVertex", "VertexSE2", "VertexPointXY"]
 
 
 def _as_vector(value, size, name):
@@ -152,40 +152,6 @@ class VertexSE2(BaseVertex):
         out = x + dx
         out[:, 2] = wrap_angle(out[:, 2])
         return out
-
-
-class VertexSE2Exp(VertexSE2):
-    """Planar pose with the SE(2) exponential-map ⊞ of GTSAM's Pose2 (its default retraction):
-
-        x ⊞ δ = x ∘ Exp(δ):  t' = t + R(ψ) V(δψ) δt,  ψ' = wrap(ψ + δψ),
-        V(θ) = [[sin θ/θ, −(1 − cos θ)/θ], [(1 − cos θ)/θ, sin θ/θ]],   ∂(x ⊞ δ)/∂δ at 0 = blockdiag(R(ψ), 1).
-
-    Same state and same edges as VertexSE2; only the update (and so the optimiser's path) differs: δ lives in the
-    body frame, and large steps move along arcs. Use it to follow GTSAM's iterations step for step.
-    """
-
-    @staticmethod
-    def oplus_batch(x, dx):
-        th = dx[:, 2]
-        small = np.abs(th) < 1e-8
-        safe = np.where(small, 1.0, th)
-        a = np.where(small, 1.0 - th * th / 6.0, np.sin(safe) / safe)
-        b = np.where(small, th / 2.0, (1.0 - np.cos(safe)) / safe)
-        ux = a * dx[:, 0] - b * dx[:, 1]
-        uy = b * dx[:, 0] + a * dx[:, 1]
-        c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
-        out = np.empty_like(x)
-        out[:, 0] = x[:, 0] + c * ux - s * uy
-        out[:, 1] = x[:, 1] + s * ux + c * uy
-        out[:, 2] = wrap_angle(x[:, 2] + th)
-        return out
-
-    @staticmethod
-    def oplus_jacobian_batch(x):
-        c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
-        m = np.zeros((len(x), 3, 3))
-        m[:, 0, 0], m[:, 0, 1], m[:, 1, 0], m[:, 1, 1], m[:, 2, 2] = c, -s, s, c, 1.0
-        return m
 
 
 class VertexPointXY(BaseVertex):

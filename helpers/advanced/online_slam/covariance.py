@@ -124,7 +124,7 @@ def ldl_solve_columns(factors, rows):
 
 def hessian_factors(graph):
     """(L, d, perm) of the undamped H = Σ JᵀΩJ at the graph's current estimates
-    (``SparseOptimizer.hessian_factors``: the graph's own LDLᵀ solver refactorises H numerically, reusing the
+    (``FastOptimizer.hessian_factors``: the graph's own LDLᵀ solver refactorises H numerically, reusing the
     fill-reducing ordering and symbolic analysis of ``initialize_optimization`` — 0.6 ms for n = 3 911 against
     4.2 ms for a fresh qdldl solver on ``graph.hessian()``), or None when H is not positive definite;
     (None, empty, empty) for a graph without free vertices."""

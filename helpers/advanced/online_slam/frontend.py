@@ -88,7 +88,7 @@ class OnlineFrontEnd(LoopClosure, MergeVerification, LateAssociation):
 
     Parameters
     ----------
-    graph : the ``SparseOptimizer`` the SLAM system builds.
+    graph : the ``FastOptimizer`` the SLAM system builds.
     model : the measurement model (``models.RangeBearingModel``).
     data_association : "nn", "mahalanobis", "ml" or "jcbb".
     n_sigma : gate width of the algorithms (χ² gates at c = 2Φ(n_σ) − 1) and of the front-end's own tests.

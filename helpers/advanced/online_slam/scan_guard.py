@@ -2,13 +2,13 @@
 
 Checks (ValueError naming the argument and what was expected):
 
-- ``check_graph_and_model``: the graph is a ``SparseOptimizer``, the model a ``RangeBearingModel``;
+- ``check_graph_and_model``: the graph is a ``FastOptimizer``, the model a ``RangeBearingModel``;
 - ``check_pose_vertex`` (``start``): a vertex of the model's pose class in that graph;
 - ``check_pose_edge`` (``add_pose``): a binary edge of that graph from the current pose to a new pose vertex;
 - ``check_scan`` (``process_scan``): the observations Z — finite, (d, m), and each column a measurement the
   model's edge class accepts (a range ≥ 0: ``check_measurements``) —, their noise covariance R (finite, symmetric,
   positive definite) and the edges' information Ω ((d, d) or one per observation; finite, symmetric, positive
-  definite as ``SparseOptimizer.add_edges`` requires). Nothing of a scan is processed before all of this passes, so
+  definite as ``add_edges`` requires). Nothing of a scan is processed before all of this passes, so
   a bad scan cannot fail later, half-way, inside the graph.
 
 ``ScanUndo``: what a scan may change — the scan counter and observation log, the tracks it can touch (the
@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...graph import BaseEdge, BaseVertex, SparseOptimizer, check_information
+from ...graph import BaseEdge, BaseVertex, check_information
+from ..fast_graph import FastOptimizer
 from ...graph.edge import check_information_batch
 from ...validation import float_array
 from .models import RangeBearingModel
@@ -37,9 +38,9 @@ def _kind(value) -> str:
 
 
 def check_graph_and_model(graph, model) -> None:
-    """ValueError unless ``graph`` is a ``SparseOptimizer`` and ``model`` a ``RangeBearingModel``."""
-    if not isinstance(graph, SparseOptimizer):
-        raise ValueError(f"graph must be a SparseOptimizer (the graph the SLAM system builds), got {_kind(graph)}")
+    """ValueError unless ``graph`` is a ``FastOptimizer`` and ``model`` a ``RangeBearingModel``."""
+    if not isinstance(graph, FastOptimizer):
+        raise ValueError(f"graph must be a FastOptimizer (the graph the SLAM system builds), got {_kind(graph)}")
     if not isinstance(model, RangeBearingModel):
         raise ValueError(f"model must be a RangeBearingModel (online_slam.models), got {_kind(model)}")
 

@@ -10,74 +10,39 @@ landmark ids) is processed in file order, as a robot would receive it:
   pose through the edge (``OnlineFrontEnd.add_pose``);
 - the LANDMARK lines of one pose form a scan (1 or 2 trees): range-bearing observations with the file's noise
   (load2D's rule: σ_r = √c_xx, σ_β = √(c_xx / 10)), whose ids are set aside for the evaluation only;
-- every ``optimization_period`` poses (default 10, about 6 m of driving and 5 scans), ``optimization_iterations``
-  iterations of GTSAM's LM schedule (``"lm-gtsam"``, warm-started: 2–4 iterations suffice) and a front-end
-  refresh. The period is chosen for the association, which gates with the estimate of the last refresh. Measured
-  with the known ids (``vp_analysis.known_id_nearest_neighbour``, notebook 23): nearest-neighbour pairing from the
-  pipeline's own estimate is right for 0.78 of the re-observations when optimising every 100 poses, 0.94 every
-  20 and 0.95 every 10 (0.98 with hindsight). The known-id pipeline reaches the same optimum (χ² = 4 678.4) at
-  every period from 10 to 100. Every 400 poses it ends in a worse local minimum (χ² = 5 740): the odometry drifts
-  too far between optimisations for the linearisation to recover. Online with JCBB, a period of 10 gives
-  agreement 0.33 and a final χ² 3 % above the known-id one. A period of 100 gives agreement 0.26 and 53 % above,
-  in a quarter of the time.
+- every ``optimization_period`` poses, ``OPTIMIZATION_ITERATIONS`` iterations of GTSAM's LM schedule
+  (``"lm-gtsam"``, warm-started from the last estimate) and a front-end refresh: the association gates with the
+  estimate and covariances of the last refresh, so the period sets how stale they are;
+- at the end, a final optimisation of up to 50 iterations.
 
-The sensor: range up to ``max_range`` (the file's ranges reach 20.7 m), field of view ``field_of_view`` (the
-bearings lie within ±76°; default 180°).
+The sensor: range up to ``MAX_RANGE``, field of view ``FIELD_OF_VIEW``. The front-end (``OnlineFrontEnd``) gates
+at ``n_sigma``, confirms trees by ``rules`` (default ``VICTORIA_PARK_RULES``), closes loops through single
+pairings (a scan holds one or two trees) and, with ``late_association``, pairs the observations it left out after
+later optimisations (``late``).
 
 The known-id reference (``known_id_reference=True``) runs the same pipeline with the file's ids (a landmark vertex
-at its first sighting, every observation an edge to it, the same optimisation schedule); its final χ² is the one
-the online χ² is compared with. The batch solution of the whole file from the loader's initial values
-(odometry composition, landmarks at their first sighting) stops in a far worse local minimum (χ² ≈ 2.1·10⁵ with
-the exponential-map pose update, 3.4·10⁵ with the additive one, against ≈ 4.7·10³ incrementally); with
-``batch_reference=True`` it is computed and reported as well.
+at its first sighting, every observation an edge to it, the same optimisation schedule and noise model); its final
+χ² is the one the online χ² is compared with. ``batch_reference=True`` also solves the whole file at once from the
+loader's initial values (odometry composition, landmarks at their first sighting).
 
 Noise model: ``measurement_sigmas=(σ_r, σ_β)`` replaces the file's observation noise and ``odometry_scale``
-multiplies the odometry covariances — in the online run *and* in the known-id reference, so that the χ² stay
+multiplies the odometry covariances, in the online run *and* in the known-id reference, so that the χ² stay
 comparable.
-
-Status (measured, notebook 23, optimising every 10 poses): the online association does **not** reach the file's
-landmarks — agreement 0.33 with the file's noise model (296 landmarks for 151 ids, final χ² 3 % above the known-id
-one), 0.79 with (σ_r, σ_β) = (0.3 m, 0.08 rad) and the odometry covariance × 10 (155 landmarks). At a period of 100
-poses the same two models give 0.26 and 0.42. Two causes, both visible with the known ids: (1) with the file's
-noise (σ_β = 0.2 rad, 3 m at 15 m) a tree seen for the first time often falls inside the gate of a mapped
-neighbour, and a scan of 1–2 trees gives joint compatibility no constellation to refuse it; (2) with a noise model
-close to the residuals of the known-id solution (σ_r ≈ 0.14 m, σ_β ≈ 0.034 rad), the odometry drifts between
-revisits by far more than its stated covariance (the known-id run's own prediction of tree 358 at scan 250 is 2.2 m
-off with a relative σ of 0.23 m), so revisited trees start new landmarks, loops stay open and the drift grows. The
-DriveBot runs (a consistent simulator) meet their targets.
-
-Measured since (``vp_analysis.odometry_drift``, notebook 23): the file's odometry has a heading *bias*, not just
-noise — against the known-id solution the heading error over 200 steps (≈ 116 m) has median 0.18 rad and mean
-0.20 rad where the file's covariance gives σ_θ = 0.028 rad (median eᵀP⁻¹e = 56 instead of ≈ 2.4); a per-step fit
-of the heading residual is 0.0005 rad + 0.001 rad/m · Δx + 1.8 % of Δθ. Correcting the odometry with that fit
-(an oracle, from the known-id solution) raises the agreement only to 0.49: the bias varies along the run, and a
-scan of 1–2 trees gives joint compatibility nothing to refuse a wrong pairing with. The file's ids are
-themselves an association: 5 pairs of ids lie within 2 m and are never seen in one scan (2.8 % of the
-observations are the smaller id of such a pair).
-
-Late association (``late_association=True``, ``online_slam.late``): the observations the front-end leaves out are
-pooled and, after each optimisation, paired with a confirmed landmark at the new estimates, or made into a landmark
-when enough of them agree. On the tuned setting of notebook 23 (the wider model, ``n_confirm`` 3, a 4σ gate) it
-lifts the agreement with the file's ids from 0.930 to 0.953 (precision 0.969 → 0.968, 104 landmarks), and
-0.9525–0.9527 over the neighbouring settings measured (period 8, 12, 15; odometry × 8; a 3.5σ gate). Off by default,
-like the tuned setting itself: with the file's noise model the map is already wrong when the pool is tested (agreement
-0.326 → 0.342, precision 0.420 → 0.368, and 73 s instead of 17 s for its larger pool).
 """
 from __future__ import annotations
 
-import inspect
 import math
 import numbers
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from tqdm import tqdm
 
 from ...datasets import build_optimizer, read_dataset
-from ...graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
-from ...validation import integer, positive_number, same_setting
-from .algorithms import ALGORITHMS, check_algorithm
+from ...graph import EdgeRangeBearing, EdgeSE2, VertexPointXY, VertexSE2
+from ..fast_graph import FastOptimizer
+from ...validation import boolean, integer, positive_number, same_setting
+from .algorithms import check_algorithm
 from .frontend import OnlineFrontEnd
 from .metrics import association_scores
 from .models import RangeBearingModel
@@ -88,6 +53,13 @@ __all__ = ["VictoriaParkResults", "run_victoria_park", "VICTORIA_PARK_RULES", "v
 #: Confirmation rule for Victoria Park: a tree is detected in some scans only (1–2 trees per scan, many in view),
 #: so a tentative landmark is confirmed at its second observation and may go unseen for 20 scans.
 VICTORIA_PARK_RULES = ConfirmationRules(n_confirm=2, n_miss=20, max_age=40, exclusion_n_sigma=4.0)
+#: LM iterations per periodic optimisation (warm-started: two to four suffice).
+OPTIMIZATION_ITERATIONS = 10
+#: The sensor footprint: the file's ranges reach 20.7 m and its bearings lie within ±76°.
+MAX_RANGE, FIELD_OF_VIEW = 25.0, math.pi
+#: The loop-closure stage: a candidate whose σ relative to the vehicle exceeds 2 m goes to it, and one pairing
+#: suffices to merge (a scan holds one or two trees).
+_CLOSURE = {"closure_sigma": 2.0, "closure_support": 1}
 
 
 def victoria_park_scans(data):
@@ -112,11 +84,11 @@ def victoria_park_scans(data):
 
 @dataclass
 class VictoriaParkResults:
-    """graph (SparseOptimizer), frontend (None for the known-id run), truth (file id of every observation, in
+    """graph (FastOptimizer), frontend (None for the known-id run), truth (file id of every observation, in
     file order), final_chi2, run_time (s), optimisations, and the references' χ² (NaN when not computed)."""
 
     data_association: str | None
-    graph: SparseOptimizer
+    graph: FastOptimizer
     frontend: OnlineFrontEnd | None
     truth: np.ndarray
     final_chi2: float
@@ -125,7 +97,6 @@ class VictoriaParkResults:
     known_id_chi2: float = float("nan")
     known_id_run_time: float = float("nan")
     batch_chi2: float = float("nan")
-    settings: dict = field(default_factory=dict)
     #: known-id runs: the landmark vertex of every file id; online runs: the known-id reference run (if computed)
     landmark_vertices: dict = field(default_factory=dict)
     reference: VictoriaParkResults | None = None
@@ -163,12 +134,10 @@ class VictoriaParkResults:
 class _KnownIds:
     """The known-id 'front-end': one vertex per file id, created at its first sighting."""
 
-    def __init__(self, graph, model, probe=None):
-        self.graph, self.model, self.vertices, self.pose, self.probe = graph, model, {}, None, probe
+    def __init__(self, graph, model):
+        self.graph, self.model, self.vertices, self.pose = graph, model, {}, None
 
-    def process_scan(self, Z, R, information, ids):
-        if self.probe is not None:
-            self.probe(self.pose.estimate, Z, ids, self.vertices)
+    def process_scan(self, Z, information, ids):
         rows = []
         for c, lid in enumerate(ids.tolist()):
             v = self.vertices.get(lid)
@@ -202,22 +171,21 @@ def _with_sigmas(stream, sigmas, odometry_scale=1.0):
             for s in stream]
 
 
-def _process(stream, data_association, model, period, iterations, frontend_options, progress, probe=None):
-    """One pass over the stream; returns (graph, frontend or None, truth, χ², optimisations, seconds). ``probe``:
-    see ``run_victoria_park``."""
+def _process(stream, data_association, model, period, frontend_options):
+    """One pass over the stream; returns (graph, frontend or None, truth, χ², optimisations, seconds)."""
     t0 = time.perf_counter()
-    graph = SparseOptimizer()
+    graph = FastOptimizer()
     first = VertexSE2(None, np.zeros(3), fixed=True)
     graph.add_vertex(first)
     poses = {stream[0][1]: first}
     if data_association is None:
-        fe = _KnownIds(graph, model, probe)
+        fe = _KnownIds(graph, model)
         fe.pose = first
     else:
         fe = OnlineFrontEnd(graph, model, data_association, **frontend_options)
         fe.start(first)
     truth, count, n_opt = [], 0, 0
-    for item in tqdm(stream, disable=not progress, desc="victoria_park", unit="record"):
+    for item in stream:
         if item[0] == "odometry":
             _, i, j, z, info = item
             prev = poses[i]
@@ -233,17 +201,16 @@ def _process(stream, data_association, model, period, iterations, frontend_optio
                 fe.add_pose(e)
             count += 1
             if count % period == 0:
-                _optimise(graph, None if data_association is None else fe, iterations)
+                _optimise(graph, None if data_association is None else fe, OPTIMIZATION_ITERATIONS)
                 n_opt += 1
         else:
             _, i, Z, info, ids = item
-            R = np.linalg.inv(info[0])
             if data_association is None:
-                fe.process_scan(Z, R, info, ids)
+                fe.process_scan(Z, info, ids)
             else:
-                fe.process_scan(Z, R, information=info)
+                fe.process_scan(Z, np.linalg.inv(info[0]), information=info)
             truth.append(ids)
-    chi2 = _optimise(graph, None, max(iterations, 50))
+    chi2 = _optimise(graph, None, 50)
     return (graph, fe, np.concatenate(truth), float(chi2), n_opt + 1, time.perf_counter() - t0)
 
 
@@ -251,24 +218,6 @@ def _compose(p, z):
     c, s = math.cos(p[2]), math.sin(p[2])
     th = math.atan2(math.sin(p[2] + z[2]), math.cos(p[2] + z[2]))
     return np.array([p[0] + c * z[0] - s * z[1], p[1] + s * z[0] + c * z[1], th])
-
-
-#: Arguments of ``run_victoria_park`` that only the online front-end reads: with ``data_association=None`` (the
-#: known-id pipeline) each must keep its default (the sensor footprint and the association's options; the
-#: known-id reference is then the run itself).
-_ASSOCIATION_ONLY = ("max_range", "field_of_view", "n_sigma", "algorithm_options", "rules", "association_space",
-                     "closure_sigma", "closure_support", "verify_merges", "verify_n_sigma", "late_association",
-                     "late_n_sigma", "known_id_reference")
-
-
-def _is_default(name, value, default) -> bool:
-    """Whether ``value`` is the default of ``run_victoria_park``'s argument ``name`` (a number equal to a numeric
-    default counts; a bool only as a bool; ``rules`` may also be ``VICTORIA_PARK_RULES``, ``algorithm_options`` {})."""
-    if value is default or (name == "algorithm_options" and isinstance(value, dict) and not value):
-        return True
-    if name == "rules":
-        return isinstance(value, ConfirmationRules) and value == VICTORIA_PARK_RULES
-    return same_setting(value, default)
 
 
 def _check_noise_model(measurement_sigmas, odometry_scale) -> None:
@@ -288,80 +237,47 @@ def _check_noise_model(measurement_sigmas, odometry_scale) -> None:
                          f"σ_bearing [rad]), got {measurement_sigmas!r}")
 
 
-def _check_association_options(data_association, model, options, given) -> None:
-    """Every front-end option checked before the file is read: with an algorithm, by building a front-end on an
-    empty graph (the same checks and messages as the run's); without one, each association-only argument must keep
-    its default (``_ASSOCIATION_ONLY``)."""
-    if data_association is not None:
-        OnlineFrontEnd(SparseOptimizer(), model, data_association, **options)
-        return
-    defaults = inspect.signature(run_victoria_park).parameters
-    for name in _ASSOCIATION_ONLY:
-        if not _is_default(name, given[name], defaults[name].default):
-            raise ValueError(f"{name}={given[name]!r} has no effect without data association (data_association="
-                             f"None runs the known-id pipeline); pass an algorithm ({', '.join(map(repr, ALGORITHMS))})"
-                             f" or leave {name} at its default")
-
-
-def run_victoria_park(data_association: str | None = "jcbb", optimization_period: int = 10,
-                      optimization_iterations: int = 10, max_range: float = 25.0,
-                      field_of_view: float = math.pi, n_sigma: float = 3.0, algorithm_options=None,
-                      rules: ConfirmationRules | None = None, association_space: str = "cartesian",
-                      closure_sigma: float = 2.0, closure_support: int = 1, measurement_sigmas=None,
-                      odometry_scale: float = 1.0, verify_merges: bool = False, verify_n_sigma: float = 3.0,
-                      late_association: bool = False, late_n_sigma: float = 2.0, known_id_reference: bool = True,
-                      batch_reference: bool = False, progress: bool = False,
-                      scan_probe=None) -> VictoriaParkResults:
-    """Process Victoria Park online with the ids hidden (module docstring). ``data_association=None`` runs the
-    known-id pipeline itself; there ``scan_probe(pose estimate, Z, ids, {file id: landmark vertex})``, if given,
-    is called before each scan is added (what the pipeline knows at that moment: ``vp_analysis``). Front-end
-    options as in ``OnlineFrontEnd`` (``rules`` default ``VICTORIA_PARK_RULES``; ``verify_merges`` and
-    ``verify_n_sigma``: merge verification with undo, ``verification``). Every argument is checked before the file
-    is read; with ``data_association=None`` the arguments only the front-end reads (``_ASSOCIATION_ONLY``) must
-    keep their defaults (ValueError otherwise: they would have no effect)."""
-    if scan_probe is not None and (data_association is not None or not callable(scan_probe)):
-        raise ValueError("scan_probe must be a callable, and applies to the known-id run (data_association=None) "
-                         f"only; got scan_probe={scan_probe!r} with data_association={data_association!r}")
+def run_victoria_park(data_association: str | None = "jcbb", optimization_period: int = 10, n_sigma: float = 3.0,
+                      rules: ConfirmationRules | None = None, measurement_sigmas=None, odometry_scale: float = 1.0,
+                      late_association: bool = False, known_id_reference: bool = True,
+                      batch_reference: bool = False) -> VictoriaParkResults:
+    """Process Victoria Park online with the ids hidden (module docstring); ``data_association=None`` runs the
+    known-id pipeline itself. ``n_sigma``, ``rules`` and ``late_association`` are the front-end's
+    (``OnlineFrontEnd``). Every argument is checked before the file is read (ValueError naming it); with
+    ``data_association=None`` the front-end's arguments must keep their defaults (they would have no effect)."""
+    period = integer(optimization_period, "optimization_period", minimum=1)
+    for name, flag in (("known_id_reference", known_id_reference), ("batch_reference", batch_reference)):
+        boolean(flag, name)
+    _check_noise_model(measurement_sigmas, odometry_scale)
+    model = RangeBearingModel(MAX_RANGE, field_of_view=FIELD_OF_VIEW, range_margin=2.0, bearing_margin=0.1)
+    options = {"n_sigma": n_sigma, "rules": VICTORIA_PARK_RULES if rules is None else rules,
+               "late_association": late_association, **_CLOSURE}
     if data_association is not None:
         check_algorithm(data_association, "data_association")
-    period = integer(optimization_period, "optimization_period", minimum=1)
-    iterations = integer(optimization_iterations, "optimization_iterations", minimum=1)
-    for name, flag in (("known_id_reference", known_id_reference), ("batch_reference", batch_reference),
-                       ("progress", progress)):
-        if not isinstance(flag, (bool, np.bool_)):
-            raise ValueError(f"{name} must be True or False, got {flag!r}")
-    model = RangeBearingModel(max_range, field_of_view=field_of_view, range_margin=2.0, bearing_margin=0.1,
-                              association_space=association_space)
-    options = {"n_sigma": n_sigma, "algorithm_options": algorithm_options,
-               "rules": VICTORIA_PARK_RULES if rules is None else rules, "closure_sigma": closure_sigma,
-               "closure_support": closure_support, "verify_merges": verify_merges, "verify_n_sigma": verify_n_sigma,
-               "late_association": late_association, "late_n_sigma": late_n_sigma}
-    _check_noise_model(measurement_sigmas, odometry_scale)
-    _check_association_options(data_association, model, options, {
-        "max_range": max_range, "field_of_view": field_of_view, "association_space": association_space,
-        "known_id_reference": known_id_reference, **options, "rules": rules})
-    stream = victoria_park_scans(read_dataset("victoria_park"))
-    stream = _with_sigmas(stream, measurement_sigmas, odometry_scale)
-    graph, fe, truth, chi2, n_opt, seconds = _process(stream, data_association, model, period, iterations,
-                                                      options, progress, scan_probe)
+        OnlineFrontEnd(FastOptimizer(), model, data_association, **options)      # checks every option
+    else:
+        for name, value, default in (("n_sigma", n_sigma, 3.0), ("rules", options["rules"], VICTORIA_PARK_RULES),
+                                     ("late_association", late_association, False)):
+            if not (same_setting(value, default) or isinstance(value, ConfirmationRules) and value == default):
+                raise ValueError(f"{name}={value!r} has no effect without data association (data_association=None "
+                                 f"runs the known-id pipeline); pass an algorithm or leave {name} at its default")
+    stream = _with_sigmas(victoria_park_scans(read_dataset("victoria_park")), measurement_sigmas, odometry_scale)
+    graph, fe, truth, chi2, n_opt, seconds = _process(stream, data_association, model, period, options)
     known = data_association is None
     res = VictoriaParkResults(data_association=data_association, graph=graph, frontend=None if known else fe,
                               truth=truth, final_chi2=chi2, run_time=seconds, optimisations=n_opt,
-                              landmark_vertices=dict(fe.vertices) if known else {},
-                              settings={"optimization_period": period, "optimization_iterations": iterations,
-                                        "model": repr(model), **{k: v for k, v in options.items() if k != "rules"},
-                                        "rules": options["rules"]})
-    if known_id_reference and data_association is not None:
-        ref = _process(stream, None, model, period, iterations, options, False)
+                              landmark_vertices=dict(fe.vertices) if known else {})
+    if known:
+        res.known_id_chi2, res.known_id_run_time = chi2, seconds
+    elif known_id_reference:
+        ref = _process(stream, None, model, period, options)
         res.known_id_chi2, res.known_id_run_time = ref[3], ref[5]
         res.reference = VictoriaParkResults(data_association=None, graph=ref[0], frontend=None, truth=ref[2],
                                             final_chi2=ref[3], run_time=ref[5], optimisations=ref[4],
                                             known_id_chi2=ref[3], known_id_run_time=ref[5],
-                                            settings=res.settings, landmark_vertices=dict(ref[1].vertices))
-    elif data_association is None:
-        res.known_id_chi2, res.known_id_run_time = chi2, seconds
+                                            landmark_vertices=dict(ref[1].vertices))
     if batch_reference:
-        batch = build_optimizer(read_dataset("victoria_park"))
+        batch = build_optimizer(read_dataset("victoria_park"), optimizer_class=FastOptimizer)
         batch.initialize_optimization()
         res.batch_chi2 = float(batch.optimize(100, algorithm="lm-gtsam"))
     return res

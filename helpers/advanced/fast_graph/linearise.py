@@ -18,10 +18,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .edge import check_model_output, edge_label
-from .errors import GraphError, NonFiniteError
-from .batched import (batched_jte, batched_jtj, plain_copy, plain_zeros, scatter_jte, scatter_jtj, scatter_jtj_upper,
-                      whitened_jacobians)
+from ...graph.edge import check_model_output
+from ...graph.elements import nonfinite_error, total_chi2
+from ...graph.optimizer import _check_oplus_output
+from .batched import (
+    batched_jte,
+    batched_jtj,
+    plain_copy,
+    plain_zeros,
+    scatter_jte,
+    scatter_jtj,
+    scatter_jtj_upper,
+    whitened_jacobians,
+)
 
 __all__ = ["LinearSystem", "FreeState", "whitened_blocks", "oplus_jacobians", "chi2_at", "linearise",
            "linearise_reference", "total_chi2", "nonfinite_error"]
@@ -130,40 +139,6 @@ def linearise_reference(structure, estimates):
     return LinearSystem(data, b, chi2)
 
 
-def _store_whitened_errors(vertex_store, store):
-    """(alive rows, whitened errors (E, m)) of one edge store at the stored estimates; (rows, None) when empty."""
-    rows = store.alive_rows()
-    if len(rows) == 0:
-        return rows, None
-    estimates = vertex_store.estimates.buffer
-    handles = store.handles.values[rows]
-    states = [estimates[vertex_store.state_indices(handles[:, k], d)] for k, d in enumerate(store.slot_dimensions)]
-    params = {k: g.values[rows] for k, g in store.params.items()}
-    e, _ = store.cls.evaluate(states, store.measurements.values[rows], params, jacobians=False)
-    check_model_output(store.cls, e, None, len(rows), False)
-    return rows, np.einsum("eij,ej->ei", store.whitening.values[rows], e)
-
-
-def total_chi2(vertex_store, edge_stores):
-    """χ² = Σ eᵀΩe over all live edges at the stored estimates (needs no built structure).
-
-    Raises NonFiniteError naming the edges whose χ² term is NaN or inf."""
-    total = 0.0
-    for store in edge_stores.values():
-        _, ew = _store_whitened_errors(vertex_store, store)
-        if ew is None:
-            continue
-        total += float(np.einsum("ei,ei->", ew, ew))
-    if not np.isfinite(total):
-        bad = []
-        for store in edge_stores.values():
-            rows, ew = _store_whitened_errors(vertex_store, store)
-            if ew is not None:
-                bad.extend(store.objects[r] for r in rows[~np.isfinite(np.einsum("ei,ei->e", ew, ew))])
-        raise nonfinite_error("chi2", bad)
-    return total
-
-
 def nonfinite_edges(structure, estimates, jacobians):
     """The edges of a built structure whose whitened χ² term (or, with ``jacobians``, a whitened Jacobian) is not
     finite at ``estimates``, in block order (the per-edge pass behind NonFiniteError's message)."""
@@ -174,17 +149,6 @@ def nonfinite_edges(structure, estimates, jacobians):
             mask |= ~np.isfinite(j).all(axis=(1, 2))
         bad.extend(blk.store.objects[r] for r in blk.rows[mask])
     return bad
-
-
-def nonfinite_error(what, edges):
-    """The NonFiniteError for ``what`` (e.g. "optimize: at the initial estimates") naming up to 5 of ``edges``."""
-    if not edges:
-        return NonFiniteError(f"{what}: χ², H or b is not finite although every edge's term is: the sum "
-                              "overflowed (check the scale of the estimates and information matrices)")
-    names = "; ".join(edge_label(e) for e in edges[:5]) + ("" if len(edges) <= 5 else f"; … ({len(edges)} edges)")
-    return NonFiniteError(f"{what}: {len(edges)} edge(s) have a non-finite (NaN or inf) error, χ² term or "
-                          f"Jacobian: {names}. Look for a degenerate configuration (e.g. a landmark exactly at a "
-                          "pose), an overflowing estimate, or a model that returns NaN.", edges)
 
 
 class FreeState:
@@ -245,16 +209,3 @@ class FreeState:
         damped = plain_copy(system.hessian_data)
         damped[pattern.diag_pos] += damping
         return self.solver.factor(pattern, damped, damping=damping).solve(system.gradient)
-
-
-def _check_oplus_output(group, moved, objects):
-    """``oplus_batch`` of a vertex class must return finite (V, d) estimates (else GraphError / NonFiniteError)."""
-    if np.shape(moved) != group.state_index.shape:
-        raise GraphError(f"{group.cls.__name__}.oplus_batch returned shape {np.shape(moved)}; expected "
-                         f"{group.state_index.shape} (one row per vertex)")
-    if not np.isfinite(moved).all():
-        bad = group.handles[~np.isfinite(moved).all(axis=1)].tolist()
-        names = [f"id {objects[h].id}" if objects is not None and objects[h] is not None else f"handle {h}"
-                 for h in bad[:5]]
-        raise NonFiniteError(f"{group.cls.__name__}.oplus_batch returned non-finite estimates for {len(bad)} "
-                             f"vertex(es) [{', '.join(names)}] (a non-finite or overflowing step)")

@@ -31,13 +31,12 @@ Marginals (the sparse inverse on the pattern of qdldl's L) are in ``marginals``.
 """
 
 import numpy as np
+import qdldl
 import scipy.sparse as sp
 from numba import njit
 
-import qdldl
-
+from ...graph.errors import GraphError
 from . import cholmod_backend
-from .errors import GraphError
 
 __all__ = ["HessianPattern", "LDLSolver", "csc_unique"]
 

@@ -35,8 +35,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..validation import finite_number, positive_number
-from .errors import GraphError
+from ...graph.errors import GraphError
+from ...validation import finite_number, positive_number
 from .linearise import LinearSystem
 
 __all__ = ["GaussNewtonParams", "LevenbergMarquardtParams", "GTSAMLevenbergMarquardtParams", "Algorithm",

@@ -3,22 +3,22 @@
 import numpy as np
 import pytest
 
-from helpers.graph import (BaseEdge, EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, GraphError,
-                           SparseOptimizer, VertexPointXY, VertexSE2)
-from helpers.graph.algorithms import (ALGORITHMS, GaussNewton, GaussNewtonParams, GTSAMLevenbergMarquardt,
+from helpers.graph import (BaseEdge, EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, GraphError, VertexPointXY, VertexSE2)
+from helpers.advanced.fast_graph import FastOptimizer
+from helpers.advanced.fast_graph.algorithms import (ALGORITHMS, GaussNewton, GaussNewtonParams, GTSAMLevenbergMarquardt,
                                       GTSAMLevenbergMarquardtParams, LevenbergMarquardt, LevenbergMarquardtParams,
                                       Trial, make_algorithm)
 from helpers.graph.elements import GraphElements
-from helpers.graph.linearise import FreeState, LinearSystem, chi2_at, linearise, linearise_reference, total_chi2
+from helpers.advanced.fast_graph.linearise import FreeState, LinearSystem, chi2_at, linearise, linearise_reference, total_chi2
 from helpers.graph.marginals import marginal_blocks
 from helpers.graph.storage import EdgeStore, GrowableArray, VertexStore
-from helpers.graph.structure import EdgeClassBlock, GraphStructure, build_structure, check_gauge
+from helpers.advanced.fast_graph.structure import EdgeClassBlock, GraphStructure, build_structure, check_gauge
 
 
 def chain(n=5, seed=1, full_information=False, fix_first=True):
     """Poses on a line joined by noisy odometry, one landmark seen from every pose."""
     rng = np.random.default_rng(seed)
-    g = SparseOptimizer()
+    g = FastOptimizer()
     poses = [VertexSE2(i, [i + rng.normal(0, 0.2), rng.normal(0, 0.2), rng.normal(0, 0.05)],
                        fixed=fix_first and i == 0) for i in range(n)]
     point = VertexPointXY(0, [2.0, 3.0])
@@ -130,14 +130,14 @@ def test_linearise_matches_the_public_hessian_gradient_and_chi2():
 def test_linearise_is_bit_for_bit_the_reference(case):
     """The fused scatter (fast path) adds the same products in the same order as the reference's bincount."""
     from helpers import datasets
-    from helpers.graph import VertexSE2Exp
+    from helpers.advanced.fast_graph import VertexSE2Exp
     if case.startswith("chain"):
         g, _, _ = chain(7, full_information=case.endswith("information"))
     elif case == "w100_exp":
-        g = datasets.build_optimizer(datasets.read_dataset("w100"), pose_class=VertexSE2Exp)
+        g = datasets.build_optimizer(datasets.read_dataset("w100"), pose_class=VertexSE2Exp, optimizer_class=FastOptimizer)
     else:
         data = datasets.read_dataset("victoria_park")
-        g = datasets.build_optimizer(data)
+        g = datasets.build_optimizer(data, optimizer_class=FastOptimizer)
         g.initialize_optimization()
         g.optimize(2)                               # moved away from the initial estimate: landmarks and poses
     g.initialize_optimization()
@@ -259,7 +259,8 @@ def test_marginal_blocks_in_caller_order_with_zero_blocks_for_fixed_vertices():
     g.optimize(10)
     order = [point, poses[0], poses[2]]
     data = g._current_linear_system().hessian_data
-    out = marginal_blocks(order, g._hessian_index, g.linear_solver, g._structure.pattern, data)
+    assert g.linear_solver.factor(g._structure.pattern, data).ok
+    out = marginal_blocks(order, g._hessian_index, g.linear_solver.qdldl)
     assert list(out) == order
     np.testing.assert_array_equal(out[poses[0]], np.zeros((3, 3)))
     cov = np.linalg.inv(g.hessian().toarray())
@@ -284,17 +285,17 @@ def test_hessian_factors_reproduce_the_permuted_hessian():
     unit1 = np.eye(len(d1)) + lower1.toarray()
     np.testing.assert_allclose(unit1 @ np.diag(d1) @ unit1.T, H1[np.ix_(perm1, perm1)], atol=1e-9 * np.abs(H1).max())
     assert not np.allclose(H1, H) and np.array_equal(d, d0) and np.array_equal(lower.toarray(), lower0)
-    empty = SparseOptimizer()
+    empty = FastOptimizer()
     empty.initialize_optimization()
     assert empty.hessian_factors() is None
-    stale = SparseOptimizer()
+    stale = FastOptimizer()
     with pytest.raises(GraphError, match="hessian_factors"):
         stale.hessian_factors()
 
 
 @pytest.mark.parametrize("seed", range(4))
 def test_csc_unique_equals_numpy_unique_on_the_keys(seed):
-    from helpers.graph.linear import csc_unique
+    from helpers.advanced.fast_graph.linear import csc_unique
     rng = np.random.default_rng(seed)
     n = int(rng.integers(1, 40))
     cols = rng.integers(0, n, 300)
@@ -323,7 +324,7 @@ def _random_mixed_graph(seed):
     """Poses and points created in random order (their rows interleave), some fixed, priors, two- and three-slot
     edges, repeated pairs, and a few removed elements."""
     rng = np.random.default_rng(seed)
-    g = SparseOptimizer()
+    g = FastOptimizer()
     vertices = []
     for i in range(int(rng.integers(8, 30))):
         cls = VertexSE2 if rng.random() < 0.6 else VertexPointXY
@@ -355,8 +356,8 @@ def test_the_block_pattern_equals_the_scalar_reference(seed):
     """``build_structure``'s pattern (from vertex blocks) is, array for array, ``HessianPattern`` built from one
     (row, col) per scalar contribution: interleaved poses and points, fixed vertices, unary and three-slot edges,
     removed edges, and a point seen only by a unary edge."""
-    from helpers.graph.linear import HessianPattern
-    from helpers.graph.structure import hessian_contributions
+    from helpers.advanced.fast_graph.linear import HessianPattern
+    from helpers.advanced.fast_graph.structure import hessian_contributions
     g = _random_mixed_graph(seed)
     lonely = VertexPointXY(99, [0.0, 0.0])          # only its diagonal block, from a unary edge
     g.add_vertex(lonely)
@@ -390,7 +391,7 @@ class _PointPrior(BaseEdge):
 def test_whitened_jacobians_are_bit_for_bit_the_two_step_products(m, d, diagonal, with_oplus):
     """The fused W J M equals batched_matmul(W, batched_matmul(J, M[handles])) (or w_i · (JM)_ic) exactly, and
     numpy's products to round-off."""
-    from helpers.graph.batched import batched_matmul, whitened_jacobians
+    from helpers.advanced.fast_graph.batched import batched_matmul, whitened_jacobians
     rng = np.random.default_rng(m * 10 + d)
     E, H = 40, 7
     jac = rng.normal(size=(E, m, d))
@@ -409,7 +410,7 @@ def test_whitened_jacobians_are_bit_for_bit_the_two_step_products(m, d, diagonal
 
 @pytest.mark.parametrize("m, p", [(3, 3), (2, 3), (2, 2), (1, 4)])
 def test_scatter_jtj_upper_is_scatter_jtj_of_a_diagonal_block(m, p):
-    from helpers.graph.batched import scatter_jtj, scatter_jtj_upper
+    from helpers.advanced.fast_graph.batched import scatter_jtj, scatter_jtj_upper
     rng = np.random.default_rng(m * 7 + p)
     a = rng.normal(size=(30, m, p))
     width = p * (p + 1) // 2
@@ -420,9 +421,9 @@ def test_scatter_jtj_upper_is_scatter_jtj_of_a_diagonal_block(m, p):
 
 
 def test_the_batched_helpers_and_the_block_pattern_reject_bad_input_by_name():
-    from helpers.graph.batched import (plain_copy, plain_empty_int32, plain_zeros, scatter_jtj_upper,
+    from helpers.advanced.fast_graph.batched import (plain_copy, plain_empty_int32, plain_zeros, scatter_jtj_upper,
                                        whitened_jacobians)
-    from helpers.graph.block_pattern import pattern_from_blocks
+    from helpers.advanced.fast_graph.block_pattern import pattern_from_blocks
     jac, oplus, handles = np.ones((4, 3, 3)), np.ones((2, 3, 3)), np.array([0, 1, 1, 0])
     with pytest.raises(ValueError, match="jac must have shape"):
         whitened_jacobians(np.ones((4, 3)), oplus, handles, np.ones((4, 3, 1)), True)

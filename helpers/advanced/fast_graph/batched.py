@@ -12,7 +12,7 @@ advice, see the comment above them).
 import numpy as np
 from numba import njit
 
-from ..validation import integer
+from ...validation import integer
 
 __all__ = ["batched_jtj", "batched_jte", "batched_matmul", "scatter_jtj", "scatter_jtj_upper", "scatter_jte",
            "whitened_jacobians", "plain_zeros", "plain_copy", "plain_empty_int32"]

@@ -33,22 +33,13 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .errors import GaugeFreedomError
+from ...graph.layout import VertexGroup, check_gauge
+from ...graph.layout import free_state_layout as course_free_state_layout
 from .block_pattern import pattern_from_blocks
 from .linear import HessianPattern
 
 __all__ = ["GraphStructure", "EdgeClassBlock", "VertexGroup", "build_structure", "extend_structure", "check_gauge",
            "refresh_edge_values"]
-
-
-@dataclass
-class VertexGroup:
-    """The free vertices of one vertex class (the ⊞ step is applied per group)."""
-
-    cls: type
-    state_index: np.ndarray    # (V, d) positions of their coordinates in the flat estimate array
-    hessian_rows: np.ndarray   # (V, d) their rows in X
-    handles: np.ndarray        # (V,) vertex handles
 
 
 @dataclass
@@ -88,23 +79,7 @@ class GraphStructure:
 
 def free_state_layout(vertex_store):
     """Hessian indices of the free vertices: (hessian_index, n, free handles, vertex groups, free_state_index)."""
-    handle_count = vertex_store.count
-    free = vertex_store.alive.values & ~vertex_store.fixed.values
-    dims = vertex_store.dimension.values
-    offset = vertex_store.offset.values
-    hessian_index = np.full(handle_count, -1, dtype=np.int64)
-    free_dims = dims[free]
-    starts = np.cumsum(free_dims) - free_dims
-    hessian_index[free] = starts
-    n = int(free_dims.sum())
-    free_handles = np.nonzero(free)[0]
-    groups = []
-    codes = vertex_store.class_code.values[free_handles]
-    for code in np.unique(codes):
-        hs = free_handles[codes == code]
-        cls = vertex_store.classes[code]
-        ar = np.arange(int(cls.dimension))
-        groups.append(VertexGroup(cls, offset[hs][:, None] + ar, hessian_index[hs][:, None] + ar, hs))
+    hessian_index, n, free_handles, groups = course_free_state_layout(vertex_store)
     free_state_index = np.zeros(n, dtype=np.int64)
     for g in groups:
         free_state_index[g.hessian_rows.ravel()] = g.state_index.ravel()
@@ -155,7 +130,7 @@ def gradient_rows_of(block, n):
     return out
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _block_entries(dk, dl, same):
     """(i, j) of a slot pair's contributions within its block, in ``linearise``'s order: the upper triangle row by
     row when ``same`` (numpy.triu_indices), else the d_k × d_l block row by row (read-only arrays, cached)."""
@@ -227,7 +202,7 @@ def build_structure(vertex_store, edge_stores):
     pattern = pattern_from_blocks(n, hessian_index[free_handles], vertex_store.dimension.values[free_handles], pairs)
     return GraphStructure(
         dimension=n, handle_count=vertex_store.count, hessian_index=hessian_index, vertex_groups=groups,
-        manifold=any(g.cls.oplus_jacobian_batch is not None for g in groups), free_state_index=free_state_index,
+        manifold=any(getattr(g.cls, 'oplus_jacobian_batch', None) is not None for g in groups), free_state_index=free_state_index,
         blocks=blocks, pattern=pattern, gradient_rows=brow_c)
 
 
@@ -350,37 +325,5 @@ def extend_structure(old, vertex_store, edge_stores, edited=()):
     gradient_rows = _interleave(old.blocks, plan, old_brows, cat[3], lambda w: w[1])
     return GraphStructure(
         dimension=n, handle_count=vertex_store.count, hessian_index=hessian_index, vertex_groups=groups,
-        manifold=any(g.cls.oplus_jacobian_batch is not None for g in groups), free_state_index=free_state_index,
+        manifold=any(getattr(g.cls, 'oplus_jacobian_batch', None) is not None for g in groups), free_state_index=free_state_index,
         blocks=blocks, pattern=pattern, gradient_rows=gradient_rows)
-
-
-def check_gauge(free_handles, handle_count, link_a, link_b, anchored_handles, vertex_objects):
-    """Raise GaugeFreedomError unless every connected component of free vertices has an anchored vertex.
-
-    ``link_a``/``link_b``: lists of arrays of free handles joined by an edge; ``anchored_handles``: list of arrays
-    of free handles in an edge with a fixed vertex or in a unary edge; ``vertex_objects[h]`` names the vertices.
-    """
-    nf = len(free_handles)
-    if nf == 0:
-        return
-    rank = np.full(handle_count, -1, dtype=np.int64)
-    rank[free_handles] = np.arange(nf)
-    a = rank[np.concatenate(link_a)] if link_a else np.zeros(0, dtype=np.int64)
-    b = rank[np.concatenate(link_b)] if link_b else np.zeros(0, dtype=np.int64)
-    adj = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(nf, nf))
-    ncomp, labels = connected_components(adj, directed=False)
-    anchored = np.zeros(ncomp, dtype=bool)
-    if anchored_handles:
-        anc = rank[np.concatenate(anchored_handles)]
-        anchored[labels[anc]] = True
-    if anchored.all():
-        return
-    bad = np.nonzero(~anchored)[0]
-    comps = [[vertex_objects[h] for h in free_handles[labels == c]] for c in bad[:5]]
-    first = comps[0]
-    names = ", ".join(f"{type(v).__name__} {v.id}" for v in first[:8])
-    more = "" if len(first) <= 8 else f", … ({len(first)} vertices)"
-    raise GaugeFreedomError(
-        f"{len(bad)} connected component(s) of free vertices have no fixed vertex and no unary (prior) edge, "
-        f"so their position is undetermined (gauge freedom); first component: {len(first)} vertices "
-        f"[{names}{more}]. Fix a vertex (set_fixed(True)) or add a prior edge.", comps)

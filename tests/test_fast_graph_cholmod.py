@@ -1,13 +1,16 @@
-"""The CHOLMOD backend of LDLSolver (helpers.graph.cholmod_backend) against the qdldl path: the same steps, the same
+"""The CHOLMOD backend of LDLSolver (helpers.advanced.fast_graph.cholmod_backend) against the qdldl path: the same steps, the same
 positive-definiteness verdicts, the same optimisation results and marginals; the per-pattern choice; the fallback
 to qdldl when cvxopt is not installed (no wheel for macOS arm64 + CPython 3.13)."""
 import numpy as np
+
+from helpers.advanced.fast_graph import FastOptimizer
 import pytest
 
 from helpers.datasets import load_dataset
-from helpers.graph import GraphError, VertexSE2Exp
-from helpers.graph import cholmod_backend
-from helpers.graph.linear import HessianPattern, LDLSolver
+from helpers.graph import GraphError
+from helpers.advanced.fast_graph import VertexSE2Exp
+from helpers.advanced.fast_graph import cholmod_backend
+from helpers.advanced.fast_graph.linear import HessianPattern, LDLSolver
 
 requires_cvxopt = pytest.mark.skipif(
     not cholmod_backend.AVAILABLE,
@@ -28,7 +31,7 @@ def _random_spd(rng, n, density, shift=1.0):
 
 def _graph_system(name, damping):
     """(pattern, upper CSC data of H + damping·I, b) of a dataset at its initial estimate."""
-    opt = load_dataset(name)
+    opt = load_dataset(name, optimizer_class=FastOptimizer)
     system = opt._free_state().linearise()
     pattern = opt._structure.pattern
     data = system.hessian_data.copy()
@@ -124,7 +127,7 @@ def _steps(chi2_0, history):
 def test_the_optimisation_result_is_the_same(name, algorithm, pose_class):
     results = {}
     for backend in ("qdldl", "cholmod"):
-        opt = load_dataset(name) if pose_class is None else load_dataset(name, pose_class)
+        opt = load_dataset(name, optimizer_class=FastOptimizer) if pose_class is None else load_dataset(name, pose_class, optimizer_class=FastOptimizer)
         opt.linear_solver.backend = backend
         opt.initialize_optimization()
         assert opt.linear_solver.active_backend == backend
@@ -152,7 +155,7 @@ def test_the_optimisation_result_is_the_same(name, algorithm, pose_class):
 def test_marginals_and_hessian_factors_stay_on_qdldl():
     opts = {}
     for backend in ("qdldl", "cholmod"):
-        opt = load_dataset("w100")
+        opt = load_dataset("w100", optimizer_class=FastOptimizer)
         opt.linear_solver.backend = backend
         opt.initialize_optimization()
         opt.optimize(20)
@@ -199,10 +202,10 @@ def test_the_cvxopt_matrix_has_the_patterns_csc_order():
 
 @requires_cvxopt
 def test_the_choice_per_pattern():
-    w10000 = load_dataset("w10000")
+    w10000 = load_dataset("w10000", optimizer_class=FastOptimizer)
     assert w10000.linear_solver.active_backend == "cholmod"  # dense factor columns (loop closures)
     for name in ("w100", "victoria_park"):
-        assert load_dataset(name).linear_solver.active_backend == "qdldl", name
+        assert load_dataset(name, optimizer_class=FastOptimizer).linear_solver.active_backend == "qdldl", name
     assert not cholmod_backend.prefers_cholmod(np.full(10_000, 5))       # sparse factor
     assert not cholmod_backend.prefers_cholmod(np.full(100, 50))         # dense but tiny (0.25 Mflop)
     assert cholmod_backend.prefers_cholmod(np.full(1_000, 60))
@@ -230,7 +233,7 @@ def test_without_cvxopt_everything_runs_on_qdldl(monkeypatch):
     assert not cholmod_backend.prefers_cholmod(np.full(1_000, 60))
     with pytest.raises(GraphError, match="needs cvxopt"):
         LDLSolver(backend="cholmod")
-    opt = load_dataset("w10000")
+    opt = load_dataset("w10000", optimizer_class=FastOptimizer)
     assert opt.linear_solver.active_backend == "qdldl"
 
 
@@ -267,7 +270,7 @@ def test_column_counts_are_those_of_qdldls_factor_under_its_ordering(case):
     if case.startswith("random"):
         pattern, _ = _random_spd(np.random.default_rng(int(case[-1])), 120, 0.04)
     else:
-        pattern = load_dataset(case)._structure.pattern
+        pattern = load_dataset(case, optimizer_class=FastOptimizer)._structure.pattern
     lower, _, perm = qdldl.Solver(pattern.upper(pattern.surrogate()), upper=True).factors()
     counts = cholmod_backend.column_counts(pattern, perm)
     np.testing.assert_array_equal(counts, np.diff(lower.indptr) + 1)
@@ -278,7 +281,7 @@ def test_auto_decides_once_per_size_and_builds_qdldl_only_on_demand(monkeypatch)
     calls = []
     counts = cholmod_backend.column_counts
     monkeypatch.setattr(cholmod_backend, "column_counts", lambda *a: calls.append(a[0].n) or counts(*a))
-    opt = load_dataset("w10000")
+    opt = load_dataset("w10000", optimizer_class=FastOptimizer)
     pattern, solver = opt._structure.pattern, opt.linear_solver
     assert solver.active_backend == "cholmod" and calls == [pattern.n]
     assert solver._qdldl is None                                     # nothing built that CHOLMOD does not need
@@ -287,19 +290,19 @@ def test_auto_decides_once_per_size_and_builds_qdldl_only_on_demand(monkeypatch)
     assert solver.qdldl is not None and solver._qdldl is not None   # the marginals' solver, on demand
     solver.analyse(pattern)                                          # the same size: the decision stands
     assert solver.active_backend == "cholmod" and len(calls) == 1
-    small = load_dataset("w100")._structure.pattern                  # below AUTO_MIN_NNZ: qdldl, no decision
+    small = load_dataset("w100", optimizer_class=FastOptimizer)._structure.pattern                  # below AUTO_MIN_NNZ: qdldl, no decision
     assert small.nnz < cholmod_backend.AUTO_MIN_NNZ
     assert solver.analyse(small).active_backend == "qdldl" and len(calls) == 1
     solver.backend = "auto"                                          # a backend assignment forgets the decision
     solver.analyse(pattern)
     assert solver.active_backend == "cholmod" and len(calls) == 2
-    sparse = load_dataset("victoria_park")._structure.pattern        # 5 times fewer entries: decided anew
+    sparse = load_dataset("victoria_park", optimizer_class=FastOptimizer)._structure.pattern        # 5 times fewer entries: decided anew
     assert solver.analyse(sparse).active_backend == "qdldl" and len(calls) == 3
     assert solver.analyse(sparse).active_backend == "qdldl" and len(calls) == 3
 
 
 def test_column_counts_and_the_ordering_reject_bad_input_by_name():
-    pattern = load_dataset("w100")._structure.pattern
+    pattern = load_dataset("w100", optimizer_class=FastOptimizer)._structure.pattern
     for perm in (np.arange(pattern.n - 1), np.zeros(pattern.n, dtype=int), np.arange(pattern.n, dtype=float)):
         with pytest.raises(ValueError, match=r"column_counts: perm must be a permutation of range\(297\)"):
             cholmod_backend.column_counts(pattern, perm)

@@ -44,10 +44,10 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..validation import boolean, integer
+from ...graph.angles import wrap_angle
+from ...graph.vertex import VertexSE2
+from ...validation import boolean, integer
 from .algorithms import ALGORITHMS, Algorithm, Trial, _dot, make_algorithm
-from .angles import wrap_angle
-from .vertex import VertexSE2
 
 __all__ = ["DefaultParams", "DefaultLevenbergMarquardt", "ArcTrial", "arc_oplus", "window_converged",
            "select_algorithm", "NAMES"]

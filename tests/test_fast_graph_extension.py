@@ -6,10 +6,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from helpers.graph import (EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, SparseOptimizer,
-                           VertexPointXY, VertexSE2)
-from helpers.graph import structure as structure_module
-from helpers.graph.structure import build_structure, extend_structure
+from helpers.graph import (EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, VertexPointXY, VertexSE2)
+from helpers.advanced.fast_graph import FastOptimizer
+from helpers.advanced.fast_graph import structure as structure_module
+from helpers.advanced.fast_graph.structure import build_structure, extend_structure
 
 
 def assert_same_structure(a, b):
@@ -66,7 +66,7 @@ def grow(g, rng, poses, points, ticks):
 
 def start(seed=0, n=4):
     rng = np.random.default_rng(seed)
-    g = SparseOptimizer()
+    g = FastOptimizer()
     poses = [VertexSE2(0, [0.0, 0.0, 0.0], fixed=True)]
     g.add_vertex(poses[0])
     points = []
@@ -127,7 +127,7 @@ def test_edge_between_old_vertices_falls_back_to_a_fresh_build(monkeypatch):
     calls = []
     monkeypatch.setattr(structure_module, "build_structure",
                         lambda *a: calls.append(1) or build_structure(*a))
-    import helpers.graph.optimizer as optimizer_module
+    import helpers.advanced.fast_graph.optimizer as optimizer_module
     monkeypatch.setattr(optimizer_module, "build_structure", structure_module.build_structure)
     g.initialize_optimization()
     assert calls == [1]

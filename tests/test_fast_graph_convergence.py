@@ -2,7 +2,7 @@
 
 Goals, each against GTSAM's LM as recorded in data/peer_results.json ("convergence"; benchmarks/record_peers.py):
 - pose graphs, and the landmark datasets whose optimum GTSAM reaches (example, cityTrees_reduced_1k,
-  victoriaPark_reduced_1k): ``load_dataset(name).optimize()`` (≤ 100 iterations) ends at GTSAM's optimum χ² to 1e−6;
+  victoriaPark_reduced_1k): ``load_dataset(name, optimizer_class=FastOptimizer).optimize()`` (≤ 100 iterations) ends at GTSAM's optimum χ² to 1e−6;
 - Victoria Park: within 100 iterations at most GTSAM's default result (its LM stops at iteration 64, χ² 210 660) and
   within 1e−5 of the optimum GTSAM's LM reaches after 431 iterations (a local one: other schedules find lower χ²);
 - W20000 (χ² still falls after 1000 GTSAM iterations): after 200 iterations at most GTSAM LM's χ² after 200.
@@ -10,13 +10,15 @@ And the stopping rule: a run whose χ² keeps falling is not stopped while the d
 tolerance. The file takes ~16 s on an idle 2-core machine, 10 s of it W20000 (200 iterations on 20 061 poses).
 """
 import numpy as np
+
+from helpers.advanced.fast_graph import FastOptimizer
 import pytest
 
 from helpers import datasets
-from helpers.graph import (BaseEdge, BaseVertex, DefaultParams, EdgeSE2, SparseOptimizer, VertexSE2,
-                           VertexSE2Exp)
-from helpers.graph.algorithms import LevenbergMarquardt
-from helpers.graph.algorithms_default import DefaultLevenbergMarquardt, select_algorithm, window_converged
+from helpers.graph import BaseEdge, BaseVertex, EdgeSE2, VertexSE2
+from helpers.advanced.fast_graph import DefaultParams, FastOptimizer, VertexSE2Exp
+from helpers.advanced.fast_graph.algorithms import LevenbergMarquardt
+from helpers.advanced.fast_graph.algorithms_default import DefaultLevenbergMarquardt, select_algorithm, window_converged
 from helpers.recorded_peers import recorded_convergence
 
 MAX_ITERATIONS = 100
@@ -25,7 +27,7 @@ AT_THE_OPTIMUM = sorted(set(datasets.DATASETS) - {"victoria_park", "w20000"})
 
 
 def _default_run(name, max_iterations=MAX_ITERATIONS):
-    opt = datasets.load_dataset(name)
+    opt = datasets.load_dataset(name, optimizer_class=FastOptimizer)
     chi2 = opt.optimize() if max_iterations == MAX_ITERATIONS else opt.optimize(max_iterations)
     return opt, chi2
 
@@ -59,7 +61,7 @@ def test_the_default_is_the_new_algorithm_and_the_named_ones_are_kept():
     assert select_algorithm(DefaultParams(window=3)).params.window == 3
     lm = select_algorithm("lm")
     assert isinstance(lm, LevenbergMarquardt) and lm.params.tau == 1e-3
-    opt = datasets.load_dataset("w100")
+    opt = datasets.load_dataset("w100", optimizer_class=FastOptimizer)
     with pytest.raises(ValueError, match="tau sets the initial damping of algorithm='lm' only"):
         opt.optimize(tau=1e-3)
     with pytest.raises(ValueError, match="algorithm must be one of 'default', 'lm', 'gn', 'lm-gtsam'"):
@@ -78,22 +80,22 @@ def test_default_params_are_checked(field, value):
 def test_additive_poses_take_the_exponential_map_iterates(name):
     """The linear step is the same in both charts (M orthogonal, λI invariant): moving VertexSE2 along arcs gives
     VertexSE2Exp's iterates."""
-    additive = datasets.load_dataset(name)
-    exp_map = datasets.load_dataset(name, pose_class=VertexSE2Exp)
+    additive = datasets.load_dataset(name, optimizer_class=FastOptimizer)
+    exp_map = datasets.load_dataset(name, pose_class=VertexSE2Exp, optimizer_class=FastOptimizer)
     additive.optimize()
     exp_map.optimize()
     # The same iterates up to round-off, which the long first steps amplify: on "example" χ² after iteration 1 moves
     # by up to 9e−10 (relative) when the initial estimate moves by one ulp; the converged ends agree to 1e−15. Without
     # the arcs the histories differ by 0.35 (example) and 1.1 (w100) at iteration 1.
     np.testing.assert_allclose(additive.chi2_history, exp_map.chi2_history, rtol=1e-7)
-    plain = datasets.load_dataset(name)
+    plain = datasets.load_dataset(name, optimizer_class=FastOptimizer)
     plain.optimize(algorithm=DefaultParams(exp_map_poses=False))
     assert plain.chi2() == pytest.approx(additive.chi2(), rel=1e-6)        # same optimum, another path
 
 
 def test_a_quarter_turn_converges_along_arcs():
     """A pose a quarter turn and a diagonal away from where its edge puts it: the arc steps converge to it."""
-    g = SparseOptimizer()
+    g = FastOptimizer()
     a, b = VertexSE2(0, [0, 0, 0], fixed=True), VertexSE2(1, [1, 0, 0])
     g.add_vertex(a)
     g.add_vertex(b)
@@ -131,7 +133,7 @@ class FarTarget(BaseEdge):
 
 
 def _slow_problem():
-    g = SparseOptimizer()
+    g = FastOptimizer()
     v = CappedScalar(0, [0.0])
     g.add_vertex(v)
     g.add_edge(FarTarget([v], measurement=[0.0, 0.0]))
@@ -186,7 +188,7 @@ class Interrupting(FarTarget):
 
 @pytest.mark.parametrize("fail_at", range(2, 9))
 def test_an_interrupted_default_run_leaves_the_last_accepted_state(fail_at):
-    g = SparseOptimizer()
+    g = FastOptimizer()
     v = CappedScalar(0, [0.0])
     g.add_vertex(v)
     g.add_edge(Interrupting([v], measurement=[0.0, 0.0]))
