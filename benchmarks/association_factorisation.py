@@ -143,12 +143,13 @@ def main():
         perm = block_ordering(upper, starts, dims)
         stripped = upper.copy()
         stripped.eliminate_zeros()
-        variants = {"qdldl build": lambda: qdldl.Solver(upper, upper=True),
-                    "qdldl build, explicit zeros removed": lambda: qdldl.Solver(stripped, upper=True),
-                    "qdldl numeric": lambda: solver.update(upper, upper=True),
-                    "block ordering": lambda: block_ordering(upper, starts, dims),
-                    "CHOLMOD, that order": lambda: fill.__setitem__("CHOLMOD", cholmod_factor(pattern, upper, perm)),
-                    "SuperLU, that order": lambda: fill.__setitem__("SuperLU", superlu_factor(upper, perm))}
+        variants = {"qdldl build": lambda u=upper: qdldl.Solver(u, upper=True),
+                    "qdldl build, explicit zeros removed": lambda s=stripped: qdldl.Solver(s, upper=True),
+                    "qdldl numeric": lambda f=solver, u=upper: f.update(u, upper=True),
+                    "block ordering": lambda u=upper, s=starts, d=dims: block_ordering(u, s, d),
+                    "CHOLMOD, that order": lambda p=pattern, u=upper, o=perm:
+                        fill.__setitem__("CHOLMOD", cholmod_factor(p, u, o)),
+                    "SuperLU, that order": lambda u=upper, o=perm: fill.__setitem__("SuperLU", superlu_factor(u, o))}
         for name, run in variants.items():
             totals[name] += best_time(run, args.rounds)
         fill["qdldl"] = solver.factors()[0].nnz

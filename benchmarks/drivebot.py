@@ -37,9 +37,8 @@ import sys
 import time
 
 import numpy as np
-
-from drivebot_gtsam import (arrays_from_graph, build_gtsam, dead_reckoning, gtsam_chi2, gtsam_isam2_stream,
-                            gtsam_lm, gtsam_pose_marginals, set_graph_estimates)
+from drivebot_gtsam import (arrays_from_graph, build_gtsam, dead_reckoning, gtsam_chi2, gtsam_isam2_stream, gtsam_lm,
+                            gtsam_pose_marginals, set_graph_estimates)
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -159,7 +158,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     from helpers.advanced.drivebot_variants import run_fast
 
-    print(f"# DriveBot benchmark  {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC  "
+    print(f"# DriveBot benchmark  {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC  "
           f"seed={args.seed}  best of {args.repeats}")
     full = run_fast("q3_a", seed=args.seed)         # the advanced optimiser: its "lm-gtsam" is GTSAM's schedule
     graph = full.system.graph

@@ -21,9 +21,8 @@ import dataclasses
 import math
 import time
 
-import numpy as np
-
 import gtsam
+import numpy as np
 
 X = gtsam.symbol_shorthand.X
 L = gtsam.symbol_shorthand.L

@@ -4,7 +4,8 @@
 
 For every benchmark graph the Hessian the optimiser factorises is taken from the optimiser's own linearisation
 (``SparseOptimizer._free_state().linearise()`` at the initial estimate: the pattern and values of the first
-iteration; q2_e: the graph the DriveBot run ends with, at its final estimate) and damped as an LM iteration does (H + λI, λ = 1e−5, GTSAM's and the default algorithm's initial λ).
+iteration; q2_e: the graph the DriveBot run ends with, at its final estimate) and damped as an LM iteration does
+(H + λI, λ = 1e−5, GTSAM's and the default algorithm's initial λ).
 Timed in the same process, interleaved (one call of each variant per round, in turn), best of ``--rounds``, as
 process CPU time (single-threaded: run with OPENBLAS_NUM_THREADS=1; robust against other jobs on a shared
 machine) and as wall time:

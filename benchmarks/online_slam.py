@@ -7,7 +7,8 @@
 Sections (each prints a markdown table):
 
 - ``targets``: DriveBot q2_b and q2_e, seed 0, clutter 0 and 2 per scan, every algorithm ("nn", "mahalanobis",
-  "ml", "jcbb") through ``helpers.advanced.hidden_ids.run_hidden_ids(..., data_association=...)``: precision, recall, landmarks
+  "ml", "jcbb") through ``helpers.advanced.hidden_ids.run_hidden_ids(..., data_association=...)``: precision,
+  recall, landmarks
   created / true, map RMSE after matching, final χ², time. Targets: JCBB precision ≥ 0.99 and recall ≥ 0.95 without
   clutter, precision ≥ 0.98 with 2 per scan.
 - ``timing``: the same runs with ids given and with "jcbb" (q2_b and q2_e, seed 0, no clutter), alternated
@@ -49,10 +50,10 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from helpers.advanced.hidden_ids import association_report, run_hidden_ids  # noqa: E402
-from helpers.gaussian import chi2inv  # noqa: E402
-from helpers.graph import EdgeRangeBearing  # noqa: E402
 from helpers.advanced.online_slam.victoria_park import VICTORIA_PARK_RULES, run_victoria_park  # noqa: E402
 from helpers.advanced.online_slam.vp_analysis import duplicate_landmarks  # noqa: E402
+from helpers.gaussian import chi2inv  # noqa: E402
+from helpers.graph import EdgeRangeBearing  # noqa: E402
 
 ALGORITHMS = ("nn", "mahalanobis", "ml", "jcbb")
 

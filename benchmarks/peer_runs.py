@@ -4,7 +4,8 @@ Each ``run_*`` returns a dict: solver, time (wall time of the optimisation call 
 iters, chi2 (GTSAM: 2 × error), hist (χ² per iteration, starting with the initial value), marg_time (all pose
 covariances), cov {pose id: 3×3 world-frame (x, y, ψ) covariance}, est {pose id: [x, y, ψ]}; helpers' run also
 build_time (``initialize_optimization()``: the structure; the ordering and symbolic analysis follow at the first
-factorisation, inside the timed optimisation — GTSAM's timed optimiser construction and iterations include both) and backend (the linear solver's backend for the pattern).
+factorisation, inside the timed optimisation — GTSAM's timed optimiser construction and iterations include both)
+and backend (the linear solver's backend for the pattern).
 helpers and GTSAM also give cpu_time (and helpers build_cpu_time): the process CPU time of the same regions — both
 run single-threaded (GTSAM's wheel has no TBB; OPENBLAS_NUM_THREADS=1), so on a shared machine the CPU-time ratio
 is the steadier one.
@@ -33,11 +34,10 @@ except ImportError:
     g2o = None
 
 from helpers import datasets
+from helpers.advanced.fast_graph import FastOptimizer, VertexSE2Exp, cholmod_backend
 from helpers.datasets.graph_data import initial_values
-from helpers.recorded_peers import covariance_agreement
-from helpers.advanced.fast_graph import FastOptimizer, VertexSE2Exp
 from helpers.graph import EdgeRangeBearing, EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
-from helpers.advanced.fast_graph import cholmod_backend
+from helpers.recorded_peers import covariance_agreement
 
 
 def load2d(name):
@@ -107,9 +107,11 @@ def run_helpers(name, algorithm="gn", iters=100, pose_class=VertexSE2, data=None
     est = {v.id: v.estimate for v in poses}
     points = {v.id: v.estimate for v in opt.vertices() if not isinstance(v, VertexSE2)}
     label = f"{algorithm}, {pose_class.__name__}" + ("" if fast else " (course)")
-    return {"solver": "helpers", "config": label, "time": t_opt, "iters": opt.iterations, "chi2": chi2, "marg_time": t_marg,
+    return {"solver": "helpers", "config": label, "time": t_opt, "iters": opt.iterations, "chi2": chi2,
+            "marg_time": t_marg,
             "cov": cov, "est": est, "est0": est0, "points": points,
-            "hist": [chi2_0] + opt.chi2_history, "build_time": t_build, "backend": opt.linear_solver.active_backend if fast else "qdldl",
+            "hist": [chi2_0] + opt.chi2_history, "build_time": t_build,
+            "backend": opt.linear_solver.active_backend if fast else "qdldl",
             "cpu_time": c_opt, "build_cpu_time": c_build}
 
 
@@ -154,7 +156,8 @@ def run_gtsam(name, marginal_every=1):
         m = np.eye(3)
         m[:2, :2] = [[np.cos(psi), -np.sin(psi)], [np.sin(psi), np.cos(psi)]]
         cov[k] = m @ c @ m.T
-    return {"solver": "GTSAM", "config": "LM defaults", "time": t_opt, "iters": optimizer.iterations(), "chi2": 2 * graph.error(result),
+    return {"solver": "GTSAM", "config": "LM defaults", "time": t_opt, "iters": optimizer.iterations(),
+            "chi2": 2 * graph.error(result),
             "marg_time": t_marg, "cov": cov, "est": est, "hist": hist, "cpu_time": c_opt}
 
 
@@ -232,7 +235,8 @@ def run_g2o(name, iters=15, data=None, marginals=True):
         except TypeError:  # g2opy 2.3.0: "Unable to convert function return value" (SparseBlockMatrix* not bound)
             cov = {}
     est = {p: np.array(vs[p].estimate().vector()) for p in poses}
-    return {"solver": "g2o", "config": f"GN x{iters}", "time": t_opt, "iters": iters, "chi2": chi2, "marg_time": t_marg, "cov": cov,
+    return {"solver": "g2o", "config": f"GN x{iters}", "time": t_opt, "iters": iters, "chi2": chi2,
+            "marg_time": t_marg, "cov": cov,
             "est": est, "hist": hist}
 
 

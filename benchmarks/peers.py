@@ -10,8 +10,10 @@ too and reported both ways: the optimisation alone (comparable with
 the earlier runs in RESULTS.md) and build + optimisation against GTSAM, whose timed optimiser construction and
 iterations include its own ordering and symbolic work (g2o's ``initialize_optimization`` is not timed, so the
 ratio with build is against GTSAM). Both ratios are printed for wall time and for process CPU time (helpers and
-GTSAM run single-threaded; on a shared machine the CPU-time ratio is the steadier). ``--backend`` sets helpers' linear solver (``LDLSolver.backend``): "auto"
-(default: CHOLMOD where it pays, when cvxopt is installed), "qdldl" (the solver before CHOLMOD was added), "cholmod". Solvers and caveats: see benchmarks/peer_runs.py. helpers runs GTSAM's own strategy on both
+GTSAM run single-threaded; on a shared machine the CPU-time ratio is the steadier). ``--backend`` sets the advanced
+optimiser's linear solver (``LDLSolver.backend``): "auto" (default: CHOLMOD where it pays, when cvxopt is installed),
+"qdldl" (the solver before CHOLMOD was added), "cholmod". Solvers and caveats: see benchmarks/peer_runs.py. The
+advanced optimiser (``helpers.advanced.fast_graph``) runs GTSAM's own strategy on both
 datasets, so the comparison is like for like: algorithm="lm-gtsam" (GTSAM's default LM schedule and stopping rule)
 with VertexSE2Exp (GTSAM's Pose2 exponential-map update). The coursework's GN reaches the same W10000 optimum in
 11 iterations instead of 8 (notebook 09 shows it); on Victoria Park the coursework's GN/LM end in a worse local
@@ -21,10 +23,10 @@ minimum (χ² ≈ 3.3e5 vs 2.1e5; see RESULTS.md).
 import argparse
 
 import numpy as np
+from peer_runs import agreement, gtsam_marginals_at, run_g2o, run_gtsam, run_helpers, warm_up
 
 from helpers.advanced.fast_graph import VertexSE2Exp
 from helpers.graph import SparseOptimizer, VertexSE2
-from peer_runs import agreement, gtsam_marginals_at, run_g2o, run_gtsam, run_helpers, warm_up
 
 
 def main():
@@ -44,10 +46,12 @@ def main():
         res.append(run_helpers(name, "gn", iters, VertexSE2, optimizer_class=SparseOptimizer))
         ref = res[1]["cov"]
         print(f"\n== {name} ==")
-        print(f"{'solver':8s} {'configuration':24s} {'time [s]':>9s} {'iters':>6s} {'final chi2':>16s} {'marginals [s]':>14s} "
+        print(f"{'solver':8s} {'configuration':24s} {'time [s]':>9s} {'iters':>6s} {'final chi2':>16s} "
+              f"{'marginals [s]':>14s} "
               f"{'cov vs GTSAM sol.':>17s}")
         for r in res:
-            print(f"{r['solver']:8s} {r['config']:24s} {r['time']:9.3f} {r['iters']:6d} {r['chi2']:16.6f} {r['marg_time']:14.3f} "
+            print(f"{r['solver']:8s} {r['config']:24s} {r['time']:9.3f} {r['iters']:6d} {r['chi2']:16.6f} "
+                  f"{r['marg_time']:14.3f} "
                   f"{agreement(r['cov'], ref):17.2e}")
         h, course = res[0], res[-1]
         peers_only = res[1:-1]

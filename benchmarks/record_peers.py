@@ -47,8 +47,8 @@ except ImportError:
 from helpers import datasets
 from helpers.advanced.fast_graph import VertexSE2Exp
 from helpers.graph import VertexPointXY
-from helpers.recorded_peers import CONVERGENCE, RESULTS_FILE, STATE_FILE, load_recorded_peers
 from helpers.paths import data_path
+from helpers.recorded_peers import CONVERGENCE, RESULTS_FILE, STATE_FILE, load_recorded_peers
 
 COMMAND = "OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/record_peers.py"
 MARGINAL_EVERY = 10

@@ -41,7 +41,8 @@ def _notebook_handler(shell, etype, value, tb, tb_offset=None):
     """IPython custom-exception handler: the error shown as one short message instead of a traceback.
 
     It is sent as the cell's error (``_showtraceback``), so the cell fails — "Run all" and nbval stop there."""
-    text = f"ExerciseNotImplemented: {message(getattr(value, 'exercise', '?'), getattr(value, 'where', 'EXERCISES.md'))}"
+    what = message(getattr(value, "exercise", "?"), getattr(value, "where", "EXERCISES.md"))
+    text = f"ExerciseNotImplemented: {what}"
     show = getattr(shell, "_showtraceback", None)
     if show is not None:
         show(etype, value, [text])

@@ -8,8 +8,8 @@ import numbers
 
 import numpy as np
 
-__all__ = ["integer", "positive_number", "finite_number", "nonnegative_number", "probability", "int_array", "index_list", "finite_vector",
-           "feature_columns", "float_array", "rng_seed", "boolean", "one_of", "function"]
+__all__ = ["integer", "positive_number", "finite_number", "nonnegative_number", "probability", "int_array",
+           "index_list", "finite_vector", "feature_columns", "float_array", "rng_seed", "boolean", "one_of", "function"]
 
 
 def integer(value, name: str, minimum: int | None = None, below: int | None = None, allow_none: bool = False):

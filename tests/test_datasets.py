@@ -24,7 +24,8 @@ def _plain_copy(name, tmp_path):
 
 
 def _sha256sums():
-    rows = (line.split() for line in data_path("datasets", "SHA256SUMS").read_text(encoding="utf-8").splitlines() if line.strip())
+    text = data_path("datasets", "SHA256SUMS").read_text(encoding="utf-8")
+    rows = (line.split() for line in text.splitlines() if line.strip())
     return {name: digest for digest, name in rows}
 
 
@@ -240,6 +241,6 @@ def test_perturbed_chi2_equals_gtsam(gtsam, peer, name):
 def test_catalogue_files_are_documented():
     readme = data_path("README.md").read_text(encoding="utf-8")
     sums = _sha256sums()
-    for name, file in datasets.DATASETS.items():
+    for file in datasets.DATASETS.values():
         assert f"`{file}`" in readme, f"{file} is not described in data/README.md"
         assert file.removesuffix(".gz") in sums

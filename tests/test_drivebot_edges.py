@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from helpers.drivebot import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex
 from helpers.drivebot.edges import FixedCompassEdge, GPSEdge, predict
-from helpers.graph import SparseOptimizer, VertexSE2, wrap_angle
+from helpers.graph import SparseOptimizer, VertexSE2
 
 
 def _numeric_jacobians(cls, states, z, params, eps=1e-6):
@@ -127,14 +127,3 @@ def test_vertices_in_a_graph_and_bad_input():
 def test_predict_bad_input(x, u, dt):
     with pytest.raises(ValueError):
         predict(x, u, dt)
-
-
-def test_kinematics_jacobians_central_differences():
-    rng = np.random.default_rng(9)
-    xk, dt = _random_poses(rng, 9), rng.uniform(0.05, 0.5, 9)
-    u = rng.normal(size=(9, 3))
-    xn = predict(xk, u + rng.normal(0, 0.5, (9, 3)), dt)
-
-    _, J = VehicleKinematicsEdge.evaluate([xk, xn], u, {"dt": dt})
-    for a, b in zip(J, _numeric_jacobians(VehicleKinematicsEdge, [xk, xn], u, {"dt": dt}), strict=True):
-        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)

@@ -2,11 +2,11 @@
 import numpy as np
 import pytest
 
+from helpers.advanced.fast_graph import VertexSE2Exp
 from helpers.drivebot import marginalisation as mg
 from helpers.drivebot import run_question
 from helpers.drivebot.edges import LandmarkVertex
 from helpers.graph import EdgeSE2, SparseOptimizer, VertexPointXY, VertexSE2
-from helpers.advanced.fast_graph import VertexSE2Exp
 
 
 def _spd(n, rng):

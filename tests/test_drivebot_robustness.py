@@ -560,7 +560,7 @@ def test_partial_results_before_any_optimisation():
     res = info.value.results
     assert res.n_steps == 4 and res.chi2_history.size == 0 and np.isnan(res.optimization_times).all()
     with pytest.raises(ValueError, match="no optimisation has run"):
-        res.final_chi2
+        _ = res.final_chi2
 
 
 def test_final_covariance_failure_keeps_the_estimates(monkeypatch):

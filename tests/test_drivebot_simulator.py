@@ -4,8 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from helpers.drivebot import (DriveBotSimulator, Event, EventQueue, EventType, SimulatorConfiguration,
-                              load_scenario)
+from helpers.drivebot import DriveBotSimulator, Event, EventQueue, EventType, SimulatorConfiguration, load_scenario
 from helpers.drivebot.scenarios import LARGE_MAP_SEED, SCENARIO_NAMES
 
 

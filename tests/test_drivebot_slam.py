@@ -4,8 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from helpers.drivebot import (DriveBotSLAMSystem, Event, EventType, Results, SimulatorConfiguration,
-                              run_question)
+from helpers.drivebot import DriveBotSLAMSystem, Event, EventType, Results, SimulatorConfiguration, run_question
 from helpers.gaussian import chi2inv, confidence_level
 from helpers.graph import GaugeFreedomError
 

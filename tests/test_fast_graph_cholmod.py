@@ -1,16 +1,13 @@
-"""The CHOLMOD backend of LDLSolver (helpers.advanced.fast_graph.cholmod_backend) against the qdldl path: the same steps, the same
-positive-definiteness verdicts, the same optimisation results and marginals; the per-pattern choice; the fallback
-to qdldl when cvxopt is not installed (no wheel for macOS arm64 + CPython 3.13)."""
+"""The CHOLMOD backend of LDLSolver (helpers.advanced.fast_graph.cholmod_backend) against the qdldl path: the same
+steps, the same positive-definiteness verdicts, the same optimisation results and marginals; the per-pattern choice;
+the fallback to qdldl when cvxopt is not installed (no wheel for macOS arm64 + CPython 3.13)."""
 import numpy as np
-
-from helpers.advanced.fast_graph import FastOptimizer
 import pytest
 
-from helpers.datasets import load_dataset
-from helpers.graph import GraphError
-from helpers.advanced.fast_graph import VertexSE2Exp
-from helpers.advanced.fast_graph import cholmod_backend
+from helpers.advanced.fast_graph import FastOptimizer, VertexSE2Exp, cholmod_backend
 from helpers.advanced.fast_graph.linear import HessianPattern, LDLSolver
+from helpers.datasets import load_dataset
+from helpers.graph import GraphError, VertexSE2
 
 requires_cvxopt = pytest.mark.skipif(
     not cholmod_backend.AVAILABLE,
@@ -127,7 +124,7 @@ def _steps(chi2_0, history):
 def test_the_optimisation_result_is_the_same(name, algorithm, pose_class):
     results = {}
     for backend in ("qdldl", "cholmod"):
-        opt = load_dataset(name, optimizer_class=FastOptimizer) if pose_class is None else load_dataset(name, pose_class, optimizer_class=FastOptimizer)
+        opt = load_dataset(name, pose_class or VertexSE2, optimizer_class=FastOptimizer)
         opt.linear_solver.backend = backend
         opt.initialize_optimization()
         assert opt.linear_solver.active_backend == backend
@@ -290,13 +287,15 @@ def test_auto_decides_once_per_size_and_builds_qdldl_only_on_demand(monkeypatch)
     assert solver.qdldl is not None and solver._qdldl is not None   # the marginals' solver, on demand
     solver.analyse(pattern)                                          # the same size: the decision stands
     assert solver.active_backend == "cholmod" and len(calls) == 1
-    small = load_dataset("w100", optimizer_class=FastOptimizer)._structure.pattern                  # below AUTO_MIN_NNZ: qdldl, no decision
+    # below AUTO_MIN_NNZ: qdldl, no decision
+    small = load_dataset("w100", optimizer_class=FastOptimizer)._structure.pattern
     assert small.nnz < cholmod_backend.AUTO_MIN_NNZ
     assert solver.analyse(small).active_backend == "qdldl" and len(calls) == 1
     solver.backend = "auto"                                          # a backend assignment forgets the decision
     solver.analyse(pattern)
     assert solver.active_backend == "cholmod" and len(calls) == 2
-    sparse = load_dataset("victoria_park", optimizer_class=FastOptimizer)._structure.pattern        # 5 times fewer entries: decided anew
+    # 5 times fewer entries: decided anew
+    sparse = load_dataset("victoria_park", optimizer_class=FastOptimizer)._structure.pattern
     assert solver.analyse(sparse).active_backend == "qdldl" and len(calls) == 3
     assert solver.analyse(sparse).active_backend == "qdldl" and len(calls) == 3
 

@@ -2,7 +2,8 @@
 
 Goals, each against GTSAM's LM as recorded in data/peer_results.json ("convergence"; benchmarks/record_peers.py):
 - pose graphs, and the landmark datasets whose optimum GTSAM reaches (example, cityTrees_reduced_1k,
-  victoriaPark_reduced_1k): ``load_dataset(name, optimizer_class=FastOptimizer).optimize()`` (≤ 100 iterations) ends at GTSAM's optimum χ² to 1e−6;
+  victoriaPark_reduced_1k): ``load_dataset(name, optimizer_class=FastOptimizer).optimize()`` (≤ 100 iterations)
+  ends at GTSAM's optimum χ² to 1e−6;
 - Victoria Park: within 100 iterations at most GTSAM's default result (its LM stops at iteration 64, χ² 210 660) and
   within 1e−5 of the optimum GTSAM's LM reaches after 431 iterations (a local one: other schedules find lower χ²);
 - W20000 (χ² still falls after 1000 GTSAM iterations): after 200 iterations at most GTSAM LM's χ² after 200.
@@ -10,15 +11,13 @@ And the stopping rule: a run whose χ² keeps falling is not stopped while the d
 tolerance. The file takes ~16 s on an idle 2-core machine, 10 s of it W20000 (200 iterations on 20 061 poses).
 """
 import numpy as np
-
-from helpers.advanced.fast_graph import FastOptimizer
 import pytest
 
 from helpers import datasets
-from helpers.graph import BaseEdge, BaseVertex, EdgeSE2, VertexSE2
 from helpers.advanced.fast_graph import DefaultParams, FastOptimizer, VertexSE2Exp
 from helpers.advanced.fast_graph.algorithms import LevenbergMarquardt
 from helpers.advanced.fast_graph.algorithms_default import DefaultLevenbergMarquardt, select_algorithm, window_converged
+from helpers.graph import BaseEdge, BaseVertex, EdgeSE2, VertexSE2
 from helpers.recorded_peers import recorded_convergence
 
 MAX_ITERATIONS = 100

@@ -3,16 +3,18 @@
 import numpy as np
 import pytest
 
-from helpers.graph import (BaseEdge, EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, GraphError, VertexPointXY, VertexSE2)
 from helpers.advanced.fast_graph import FastOptimizer
 from helpers.advanced.fast_graph.algorithms import (ALGORITHMS, GaussNewton, GaussNewtonParams, GTSAMLevenbergMarquardt,
-                                      GTSAMLevenbergMarquardtParams, LevenbergMarquardt, LevenbergMarquardtParams,
-                                      Trial, make_algorithm)
+                                                    GTSAMLevenbergMarquardtParams, LevenbergMarquardt,
+                                                    LevenbergMarquardtParams, Trial, make_algorithm)
+from helpers.advanced.fast_graph.linearise import (FreeState, LinearSystem, chi2_at, linearise, linearise_reference,
+                                                   total_chi2)
+from helpers.advanced.fast_graph.structure import EdgeClassBlock, GraphStructure, build_structure, check_gauge
+from helpers.graph import (BaseEdge, EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, GraphError,
+                           VertexPointXY, VertexSE2)
 from helpers.graph.elements import GraphElements
-from helpers.advanced.fast_graph.linearise import FreeState, LinearSystem, chi2_at, linearise, linearise_reference, total_chi2
 from helpers.graph.marginals import marginal_blocks
 from helpers.graph.storage import EdgeStore, GrowableArray, VertexStore
-from helpers.advanced.fast_graph.structure import EdgeClassBlock, GraphStructure, build_structure, check_gauge
 
 
 def chain(n=5, seed=1, full_information=False, fix_first=True):
@@ -134,7 +136,8 @@ def test_linearise_is_bit_for_bit_the_reference(case):
     if case.startswith("chain"):
         g, _, _ = chain(7, full_information=case.endswith("information"))
     elif case == "w100_exp":
-        g = datasets.build_optimizer(datasets.read_dataset("w100"), pose_class=VertexSE2Exp, optimizer_class=FastOptimizer)
+        g = datasets.build_optimizer(datasets.read_dataset("w100"), pose_class=VertexSE2Exp,
+                                     optimizer_class=FastOptimizer)
     else:
         data = datasets.read_dataset("victoria_park")
         g = datasets.build_optimizer(data, optimizer_class=FastOptimizer)
@@ -422,7 +425,7 @@ def test_scatter_jtj_upper_is_scatter_jtj_of_a_diagonal_block(m, p):
 
 def test_the_batched_helpers_and_the_block_pattern_reject_bad_input_by_name():
     from helpers.advanced.fast_graph.batched import (plain_copy, plain_empty_int32, plain_zeros, scatter_jtj_upper,
-                                       whitened_jacobians)
+                                                     whitened_jacobians)
     from helpers.advanced.fast_graph.block_pattern import pattern_from_blocks
     jac, oplus, handles = np.ones((4, 3, 3)), np.ones((2, 3, 3)), np.array([0, 1, 1, 0])
     with pytest.raises(ValueError, match="jac must have shape"):

@@ -6,10 +6,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from helpers.graph import (EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, VertexPointXY, VertexSE2)
 from helpers.advanced.fast_graph import FastOptimizer
 from helpers.advanced.fast_graph import structure as structure_module
 from helpers.advanced.fast_graph.structure import build_structure, extend_structure
+from helpers.graph import EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, VertexPointXY, VertexSE2
 
 
 def assert_same_structure(a, b):

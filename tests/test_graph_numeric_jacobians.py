@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-import helpers.graph as hg
-from helpers.graph import (BaseEdge, EdgeRangeBearing, SparseOptimizer, VertexPointXY, VertexSE2, batch_matrix, numeric_jacobians, wrap_angle)
+from helpers.graph import (BaseEdge, EdgeRangeBearing, SparseOptimizer, VertexPointXY, VertexSE2, batch_matrix,
+                           numeric_jacobians, wrap_angle)
 from helpers.advanced.fast_graph import VertexSE2Exp
 
 

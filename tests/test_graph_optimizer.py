@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from helpers.graph import (BaseEdge, EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, GraphError, SparseOptimizer, VertexPointXY, VertexSE2, wrap_angle)
+from helpers.graph import (BaseEdge, EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
+                           EdgeSE2Prior, GaugeFreedomError, GraphError, SparseOptimizer, VertexPointXY, VertexSE2,
+                           wrap_angle)
 from helpers.advanced.fast_graph import FastOptimizer, VertexSE2Exp
 
 

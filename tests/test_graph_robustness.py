@@ -6,9 +6,12 @@ leaves the graph as it was. (Non-finite values, edits after initialisation and i
 import numpy as np
 import pytest
 
-from helpers.graph import (BaseEdge, BaseVertex, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2, EdgeSE2Prior, GaugeFreedomError, GraphError, SparseOptimizer, VertexPointXY, VertexSE2, batch_matrix, check_information, information_from_covariance, numeric_jacobians, wrap_angle, wrap_angle_mod)
 from helpers.advanced.fast_graph import GaussNewtonParams, GTSAMLevenbergMarquardtParams, LevenbergMarquardtParams
 from helpers.advanced.fast_graph.linear import HessianPattern, LDLSolver
+from helpers.graph import (BaseEdge, BaseVertex, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
+                           EdgeSE2Prior, GaugeFreedomError, GraphError, SparseOptimizer, VertexPointXY, VertexSE2,
+                           batch_matrix, check_information, information_from_covariance, numeric_jacobians, wrap_angle,
+                           wrap_angle_mod)
 from helpers.graph.marginals import sparse_inverse_on_pattern
 from helpers.graph.storage import GrowableArray
 
@@ -350,7 +353,8 @@ CASES = {
     "edge-class-dimension-zero": (None, lambda c: _edge_class(vertex_types=(VertexSE2,), measurement_dimension=0),
                                   TypeError, "measurement_dimension"),
     "edge-class-parameters-list": (None, lambda c: _edge_class(vertex_types=(VertexSE2,), measurement_dimension=1,
-                                                               parameters=["dt"]), TypeError, "parameters must be a dict"),
+                                                               parameters=["dt"]), TypeError,
+                                   "parameters must be a dict"),
     "edge-class-parameter-str": (None, lambda c: _edge_class(vertex_types=(VertexSE2,), measurement_dimension=1,
                                                              parameters={"dt": "fast"}), TypeError,
                                  r"parameters\['dt'\] must be numeric"),

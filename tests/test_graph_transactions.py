@@ -5,9 +5,10 @@ leaves the last accepted state in the vertices; a second optimize reaches the un
 import numpy as np
 import pytest
 
-from helpers.graph import (EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2, GraphError, SparseOptimizer, VertexPointXY, VertexSE2, wrap_angle)
 from helpers.advanced.fast_graph import FastOptimizer, GTSAMLevenbergMarquardtParams
 from helpers.advanced.fast_graph.algorithms import Trial
+from helpers.graph import (EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2, GraphError, SparseOptimizer,
+                           VertexPointXY, VertexSE2, wrap_angle)
 from helpers.graph.errors import NonFiniteError
 
 #: (graph class, algorithm): the course's LM and Gauss–Newton, and the advanced optimiser's GTSAM schedule
@@ -54,7 +55,8 @@ class Faulty(EdgeRangeBearing):
         return e, jac
 
 
-def slam(seed=0, rb_class=EdgeRangeBearing, point_class=VertexPointXY, edits=None, noise=1.0, optimizer=SparseOptimizer):
+def slam(seed=0, rb_class=EdgeRangeBearing, point_class=VertexPointXY, edits=None, noise=1.0,
+         optimizer=SparseOptimizer):
     """Poses on an arc (pose 0 fixed), points around it, odometry, range-bearing, one GPS (lever arm) and one
     compass (offset) edge, with a poor initial guess. ``edits(parts)`` runs before returning."""
     rng = np.random.default_rng(seed)

@@ -12,8 +12,8 @@ from helpers.advanced.hidden_ids import run_hidden_ids
 from helpers.drivebot import run_question, runner
 from helpers.graph import EdgePositionPrior, EdgeSE2, VertexPointXY, VertexSE2
 from helpers.advanced.fast_graph import FastOptimizer
-from helpers.advanced.online_slam import (ALGORITHMS, ConfirmationRules, OnlineFrontEnd, RangeBearingModel, check_options,
-                                 run_victoria_park)
+from helpers.advanced.online_slam import (ALGORITHMS, ConfirmationRules, OnlineFrontEnd, RangeBearingModel,
+                                          check_options, run_victoria_park)
 from helpers.advanced.online_slam import victoria_park
 from helpers.advanced.online_slam.victoria_park import VICTORIA_PARK_RULES
 

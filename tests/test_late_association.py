@@ -1,15 +1,14 @@
-"""Late association (``helpers.advanced.online_slam.late``): the innovation test against finite differences, the group test
-on hand-made points, a dropped observation paired after a later optimisation, an unmapped landmark made from the
-pool, and bad input."""
+"""Late association (``helpers.advanced.online_slam.late``): the innovation test against finite differences, the
+group test on hand-made points, a dropped observation paired after a later optimisation, an unmapped landmark made
+from the pool, and bad input."""
 import math
 
 import numpy as np
 import pytest
+from test_online_slam import R, World
 
 from helpers.advanced.online_slam import ConfirmationRules, RangeBearingModel
 from helpers.advanced.online_slam.late import group_test, innovation_d2
-
-from test_online_slam import R, World
 
 
 def _numeric_prediction_jacobian(model, x, m, h=1e-6):

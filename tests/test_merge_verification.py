@@ -9,11 +9,11 @@ second landmark ``offset`` metres away: close enough to be merged on one observa
 import numpy as np
 import pytest
 
-from helpers.graph import EdgeSE2, VertexSE2
 from helpers.advanced.fast_graph import FastOptimizer
 from helpers.advanced.online_slam import ConfirmationRules, OnlineFrontEnd, RangeBearingModel
 from helpers.advanced.online_slam.tracks import CONFIRMED
 from helpers.advanced.online_slam.verification import split_statistic
+from helpers.graph import EdgeSE2, VertexSE2
 
 R = np.diag([0.05, 0.01]) ** 2
 ODO_INFO = np.linalg.inv(np.diag([0.002, 0.002, 0.0005]) ** 2)

@@ -5,12 +5,12 @@ import math
 import numpy as np
 import pytest
 
+from helpers.advanced.hidden_ids import SensorCorruption, association_report, run_hidden_ids
+from helpers.advanced.online_slam.victoria_park import run_victoria_park, victoria_park_scans
 from helpers.drivebot.edges import LandmarkVertex
 from helpers.drivebot.events import Event, EventType
 from helpers.drivebot.runner import run_question
 from helpers.graph import EdgeRangeBearing
-from helpers.advanced.hidden_ids import SensorCorruption, association_report, run_hidden_ids
-from helpers.advanced.online_slam.victoria_park import run_victoria_park, victoria_park_scans
 
 SHORT = {"maximum_step_number": 300}
 

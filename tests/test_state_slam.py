@@ -97,8 +97,8 @@ def test_bundle_jacobian_central_differences(cam):
         for k in range(x0.size):
             e = np.zeros_like(x0)
             e[k] = h
-            fd[:, k] = (st.predict_feature_bundle(cam, sel, x0 + e)[0] - st.predict_feature_bundle(cam, sel, x0 - e)[0]) \
-                / (2 * h)
+            plus, minus = st.predict_feature_bundle(cam, sel, x0 + e)[0], st.predict_feature_bundle(cam, sel, x0 - e)[0]
+            fd[:, k] = (plus - minus) / (2 * h)
         np.testing.assert_allclose(J, fd, rtol=1e-6, atol=2e-3)
 
 

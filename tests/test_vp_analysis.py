@@ -6,10 +6,10 @@ import matplotlib
 import numpy as np
 import pytest
 
-from helpers.datasets import read_dataset
-from helpers.graph import VertexPointXY, VertexSE2
 from helpers.advanced.online_slam import vp_analysis as va
 from helpers.advanced.online_slam.victoria_park import victoria_park_scans
+from helpers.datasets import read_dataset
+from helpers.graph import VertexPointXY, VertexSE2
 
 matplotlib.use("Agg")
 

@@ -2,7 +2,7 @@
 
     python tools/student.py build [DEST]          # = make student (DEST defaults to build/student)
     python tools/student.py check DEST            # the self-check alone, on an existing student tree
-    python tools/student.py copy-solution DEST EX # put the answer key's body of exercise EX into DEST (for the CI check)
+    python tools/student.py copy-solution DEST EX # the answer key's body of exercise EX into DEST (the CI check)
 
 The registry ``tools/exercises.toml`` names every exercise's target functions. The build copies the tracked
 tree (``git ls-files``; outside a git checkout a walk that skips .venv, build, figures and caches) to DEST, then
@@ -196,7 +196,8 @@ def tracked_files(root: pathlib.Path):
     """Paths (relative, posix) of the files to copy: git's tracked files and new files it does not ignore
     (read-only ``git ls-files``), or a walk outside a checkout."""
     if (root / ".git").exists() and shutil.which("git"):
-        out = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=str(root), capture_output=True, check=False)
+        out = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=str(root),
+                             capture_output=True, check=False)
         if out.returncode == 0:
             return sorted(p for p in out.stdout.decode("utf-8").split("\0") if p and (root / p).is_file())
     files = []
@@ -245,7 +246,8 @@ def replace_notebook_cells(dest: pathlib.Path, reg: dict) -> None:
         nb = json.loads(path.read_text(encoding="utf-8"))
         cells = [c for c in nb.get("cells", []) if c.get("id") == entry["cell"]]
         if len(cells) != 1:
-            raise BuildError("notebook_cell: %s has %d cells with id %r" % (entry["notebook"], len(cells), entry["cell"]))
+            raise BuildError("notebook_cell: %s has %d cells with id %r"
+                             % (entry["notebook"], len(cells), entry["cell"]))
         cells[0]["source"] = lines_of(entry["source"].strip("\n"))
         path.write_text(json.dumps(nb, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
 

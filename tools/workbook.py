@@ -62,8 +62,8 @@ def check_interpreter():
     name = platform.python_implementation()
     if name != "CPython" or not SUPPORTED[0] <= version < SUPPORTED[1]:
         found = "%s %s (%s)" % (name, platform.python_version(), sys.executable)
-        raise TaskError("this workbook needs %s; found %s. Run with a supported Python, e.g. "
-                        "`make test PYTHON=python3.12` or `py -3.12 tools\\workbook.py test`." % (SUPPORTED_TEXT, found))
+        raise TaskError("this workbook needs %s; found %s. Run with a supported Python, e.g. `make test "
+                        "PYTHON=python3.12` or `py -3.12 tools\\workbook.py test`." % (SUPPORTED_TEXT, found))
 
 
 def venv_python():

@@ -50,16 +50,16 @@ import math
 
 import numpy as np
 
-from .online_slam import (OnlineFrontEnd, RangeBearingModel, association_scores, check_algorithm, check_options,
-                           map_errors)
-from .online_slam.covariance import hessian_factors
-from .online_slam.tracks import DROPPED
-from ..validation import integer, nonnegative_number, one_of, probability
 from ..drivebot.edges import LandmarkVertex
 from ..drivebot.events import Event, EventType
 from ..drivebot.runner import Results, question_setup, run_question
 from ..drivebot.slam_system import DriveBotSLAMSystem
+from ..validation import integer, nonnegative_number, one_of, probability
 from .fast_graph import FastOptimizer
+from .online_slam import (OnlineFrontEnd, RangeBearingModel, association_scores, check_algorithm, check_options,
+                          map_errors)
+from .online_slam.covariance import hessian_factors
+from .online_slam.tracks import DROPPED
 
 __all__ = ["AssociatingSLAMSystem", "SensorCorruption", "HiddenIds", "association_report", "ASSOCIATION_OPTIONS",
            "run_hidden_ids"]
@@ -253,7 +253,8 @@ class HiddenIds:
 
 def association_report(results) -> dict:
     """The association of a finished run (``Results.association_report``): precision, recall (pairings vs the
-    simulator's truth, see ``helpers.advanced.online_slam.metrics``), n_landmarks (created), n_true_landmarks (observed at
+    simulator's truth, see ``helpers.advanced.online_slam.metrics``), n_landmarks (created), n_true_landmarks
+    (observed at
     least once), n_matched, map_rmse / map_max_error (m, matched landmarks), n_clutter, n_clutter_paired,
     data_association, clutter_rate, detection_probability, final_chi2, run_time; with a front-end also
     n_tentative_dropped, association_time and refresh_time (s), jcbb_nodes, budget_exhausted; and ``matching``."""

@@ -28,11 +28,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..figures import COLORS
-from .online_slam import check_algorithm
-from ..validation import integer, nonnegative_number, positive_number
 from ..drivebot.runner import Results
+from ..figures import COLORS
+from ..validation import integer, nonnegative_number, positive_number
 from .hidden_ids import association_report, run_hidden_ids
+from .online_slam import check_algorithm
 
 __all__ = ["ALGORITHM_LABELS", "Case", "Runs", "AssociationRecorder", "true_sources", "run_summary",
            "observation_ticks", "revisits", "closure_pairings", "closure_outcome", "nn_gate", "sig",

@@ -340,7 +340,7 @@ class IncrementalSmoother:
         pos = self._chain_pos.values
         est[pos] = self.chain_class.oplus_batch(self._lin[pos], dc)
         by_class = {}
-        for h, d in zip(self._map_handles, self._map_dims):
+        for h in self._map_handles:
             by_class.setdefault(vs.class_code.buffer[h], []).append(h)
         for code, handles in by_class.items():
             cls, handles = vs.classes[code], np.array(handles)

@@ -2,8 +2,7 @@
 
 import numpy as np
 
-from ..graph import (EdgeRangeBearing, EdgeSE2, EdgeSE2PointXY, SparseOptimizer, VertexPointXY, VertexSE2,
-                     wrap_angle)
+from ..graph import EdgeRangeBearing, EdgeSE2, EdgeSE2PointXY, SparseOptimizer, VertexPointXY, VertexSE2, wrap_angle
 from ..graph.elements import GraphElements
 from .records import DatasetFormatError
 

@@ -66,8 +66,9 @@ def read_toro(path):
     if (v[:, 4:6] <= 0).any():
         fail(path, ln[first_bad(v[:, 4:6] <= 0)], "BR: sigmas must be positive")
     if (v[:, 3] <= 0).any():
-        fail(path, ln[first_bad(v[:, 3] <= 0)], "BR: the range must be positive (a negative one is impossible; at "
-                                                 "range 0 the landmark sits on the sensor and its bearing is undefined)")
+        fail(path, ln[first_bad(v[:, 3] <= 0)], "BR: the range must be positive (a negative one is impossible; "
+                                                 "at range 0 the landmark sits on the sensor and its bearing is "
+                                                 "undefined)")
     z = np.stack([v[:, 3], v[:, 2]], axis=1)
     info = np.zeros((len(v), 2, 2))
     info[:, 0, 0] = 1.0 / v[:, 5] ** 2

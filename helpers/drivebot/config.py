@@ -107,7 +107,7 @@ class SimulatorConfiguration:
     def field_names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in dataclasses.fields(cls))
 
-    def replace(self, **changes) -> "SimulatorConfiguration":
+    def replace(self, **changes) -> SimulatorConfiguration:
         """A validated copy with some fields changed (unknown names raise ValueError)."""
         unknown = sorted(set(changes) - set(self.field_names()))
         if unknown:

@@ -78,7 +78,8 @@ class Event:
                 raise ValueError(f"data of a LANDMARK event must have shape (2, n) with n ≥ 1, got {data.shape}")
             ids = np.asarray(self.landmark_ids)
             if ids.shape != (data.shape[1],) or not np.issubdtype(ids.dtype, np.integer) or np.any(ids < 1):
-                raise ValueError(f"landmark_ids must be {data.shape[1]} positive integers (1-based), got {self.landmark_ids!r}")
+                raise ValueError(f"landmark_ids must be {data.shape[1]} positive integers (1-based), "
+                                 f"got {self.landmark_ids!r}")
             if np.unique(ids).size != ids.size:
                 raise ValueError(f"landmark_ids of one LANDMARK event must be distinct, got {ids.tolist()}")
             object.__setattr__(self, "landmark_ids", ids.astype(np.int64))
@@ -98,7 +99,7 @@ class Event:
 
     @classmethod
     def derived(cls, time: float, type: EventType, data: np.ndarray, covariance: np.ndarray,
-                landmark_ids: np.ndarray | None = None, offset=None) -> "Event":
+                landmark_ids: np.ndarray | None = None, offset=None) -> Event:
         """An event whose parts are valid by construction — derived from a checked event (its columns permuted
         or thinned, finite columns added, ids renumbered 1 … n) — built without the checks of the constructor.
         ``SensorCorruption`` derives one per laser scan."""

@@ -17,9 +17,9 @@ import numbers
 
 import numpy as np
 
+from ..graph import EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing
 from ..validation import float_array
 from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex
-from ..graph import EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing
 
 __all__ = ["draw_factor_graph", "plot_state_errors", "plot_covariances", "break_at_wraps", "plot_wrapped_angle"]
 

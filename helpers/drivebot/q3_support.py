@@ -160,7 +160,7 @@ def format_seed_table(evaluation, columns) -> str:
     _check_evaluation(evaluation, [c[0] for c in columns])
     name_w = max(len(n) for n in evaluation) + 1
     cells = {}
-    for metric, header, spec in columns:
+    for metric, _header, spec in columns:
         summ = seed_summary(evaluation, metric)
         cells[metric] = {n: (f"{format(m, spec)} ± {format(s, spec)}" if k else "failed")
                          for n, (m, s, _, _, k) in summ.items()}

@@ -124,8 +124,8 @@ def run_question(name: str, seed=0, progress: bool = False, step_hook=None, setu
     Overrides are SimulatorConfiguration fields (``enable_compass=True``, ``perturb_with_noise=False``, …)
     or SLAM options (``optimization_period``, ``compass_edge``, ``remove_prediction_edges``,
     ``keep_first_prediction_edge``, ``pre_optimization_hook``, ``optimization_algorithm``). ``seed`` seeds the
-    one Generator behind every random draw; ``progress`` shows a tqdm bar (off by default). ``step_hook(system, k)``, if given, is
-    called after tick k has been processed (and optimised, if due) — e.g. to snapshot estimates just before
+    one Generator behind every random draw; ``progress`` shows a tqdm bar (off by default). ``step_hook(system, k)``,
+    if given, is called after tick k has been processed (and optimised, if due) — e.g. to snapshot estimates just before
     and after a loop closure.
 
     Bad settings raise ValueError before anything runs (see ``SimulatorConfiguration`` for the bounds; the run

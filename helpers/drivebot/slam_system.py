@@ -39,12 +39,12 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
-from ..graph import (BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2Prior,
-                     SparseOptimizer, information_from_covariance)
+from ..graph import (BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2Prior, SparseOptimizer,
+                     information_from_covariance)
 from ..validation import integer
 from .config import SimulatorConfiguration
 from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex, predict
@@ -77,7 +77,7 @@ class DriveBotSLAMSystem:
     def __init__(self, config: SimulatorConfiguration | None = None, optimization_period=None,
                  compass_edge: str = "fixed", remove_prediction_edges: bool = False,
                  keep_first_prediction_edge: bool = False,
-                 pre_optimization_hook: Callable[["DriveBotSLAMSystem"], None] | None = None,
+                 pre_optimization_hook: Callable[[DriveBotSLAMSystem], None] | None = None,
                  optimization_algorithm: str = "lm"):
         # every option below is validated by __setattr__ (_OPTION_CHECKS), here and on later assignment
         self.config = SimulatorConfiguration() if config is None else config
@@ -203,7 +203,8 @@ class DriveBotSLAMSystem:
         if np.linalg.det(P0) < 1e-6:
             v.set_fixed(True)
         else:  # never in DriveBot (P0 = 0), kept for completeness: a unary prior with Ω = P0⁻¹
-            self.graph.add_edge(EdgeSE2Prior([v], measurement=event.data, information=information_from_covariance(P0, "initial covariance")))
+            information = information_from_covariance(P0, "initial covariance")
+            self.graph.add_edge(EdgeSE2Prior([v], measurement=event.data, information=information))
         self.vehicle_vertices.append(v)
         self.current_vehicle_vertex = v
         self.current_time = event.time

@@ -48,15 +48,8 @@ accepted state. ``SparseOptimizer`` (``optimizer``) documents the rest of the AP
 
 from .angles import wrap_angle, wrap_angle_mod
 from .edge import BaseEdge, batch_matrix, check_information, information_from_covariance, numeric_jacobians
-from .edges2d import (
-                      EdgeHeadingPrior,
-                      EdgePointPrior,
-                      EdgePositionPrior,
-                      EdgeRangeBearing,
-                      EdgeSE2,
-                      EdgeSE2PointXY,
-                      EdgeSE2Prior,
-)
+from .edges2d import (EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2, EdgeSE2PointXY,
+                      EdgeSE2Prior)
 from .errors import GaugeFreedomError, GraphError, NonFiniteError
 from .optimizer import SparseOptimizer
 from .vertex import BaseVertex, VertexPointXY, VertexSE2

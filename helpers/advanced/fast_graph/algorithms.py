@@ -150,7 +150,7 @@ class Trial:
 
     def try_step(self, dx):
         """Move to X ⊞ (−dx); returns χ² there (the accepted state is kept until ``accept``)."""
-        self.system                            # linearised at X before X is left
+        _ = self.system                        # linearised at X before X is left
         self._move(dx)
         return self.state.chi2("optimize: at a trial step")
 

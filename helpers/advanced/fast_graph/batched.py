@@ -77,7 +77,8 @@ def scatter_jtj(a, b, upper, positions, start, out):
 
 @njit(cache=True)
 def _scatter_jtj_upper(a, positions, start, out):
-    """The kernel of ``scatter_jtj_upper``: ``scatter_jtj(a, a, True, ...)``, the upper triangle of AᵀA (a diagonal block H_kk), the same additions in
+    """The kernel of ``scatter_jtj_upper``: ``scatter_jtj(a, a, True, ...)``, the upper triangle of AᵀA (a diagonal
+    block H_kk), the same additions in
     the same order. The entries (i, j) are enumerated from index lists: one loop of fixed length per edge, and A
     read once, run in about 0.6× the time of the triangle's nested loops."""
     E, _, p = a.shape
@@ -142,7 +143,8 @@ def batched_matmul(a, b):
 
 @njit(cache=True)
 def _whitened_jacobians(jac, oplus, handles, whitening, diagonal):
-    """The kernel of ``whitened_jacobians``: J̃ = W J M per edge, (E, m, d): ``jac`` J (E, m, d); M = ``oplus[handles[e]]`` (the ⊞ Jacobian of the
+    """The kernel of ``whitened_jacobians``: J̃ = W J M per edge, (E, m, d): ``jac`` J (E, m, d);
+    M = ``oplus[handles[e]]`` (the ⊞ Jacobian of the
     slot's vertex; skipped when ``handles`` is empty, M = I); W = ``whitening`` (E, m, m), or its diagonal as
     (E, m, 1) when ``diagonal``. The same products in the same order as ``batched_matmul(J, M[handles])``
     followed by ``batched_matmul(W, ·)`` (or the elementwise w_i · (JM)_ic), without the intermediate arrays;

@@ -21,7 +21,8 @@ build its solver, measured on Victoria Park, W10000, W20000 and the DriveBot map
 supernodal factorisation can save in an online run that builds many such patterns.
 
 Use. ``CholmodFactor(pattern, perm)`` builds the cvxopt matrix with H's pattern (or takes the one the decision
-built) and CHOLMOD's symbolic analysis with the given fill-reducing permutation once per pattern; ``factor(data)`` refactorises numerically (False when CHOLMOD finds the matrix not positive definite:
+built) and CHOLMOD's symbolic analysis with the given fill-reducing permutation once per pattern; ``factor(data)``
+refactorises numerically (False when CHOLMOD finds the matrix not positive definite:
 it raises ArithmeticError), ``solve(rhs)`` returns H⁻¹ rhs. CHOLMOD's options live in a module-level dict of
 cvxopt that every call reads; the calls here set their own options and restore the caller's afterwards.
 """

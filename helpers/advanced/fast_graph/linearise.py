@@ -21,16 +21,8 @@ import numpy as np
 from ...graph.edge import check_model_output
 from ...graph.elements import nonfinite_error, total_chi2
 from ...graph.optimizer import _check_oplus_output
-from .batched import (
-    batched_jte,
-    batched_jtj,
-    plain_copy,
-    plain_zeros,
-    scatter_jte,
-    scatter_jtj,
-    scatter_jtj_upper,
-    whitened_jacobians,
-)
+from .batched import (batched_jte, batched_jtj, plain_copy, plain_zeros, scatter_jte, scatter_jtj, scatter_jtj_upper,
+                      whitened_jacobians)
 
 __all__ = ["LinearSystem", "FreeState", "whitened_blocks", "oplus_jacobians", "chi2_at", "linearise",
            "linearise_reference", "total_chi2", "nonfinite_error"]

@@ -202,7 +202,8 @@ def build_structure(vertex_store, edge_stores):
     pattern = pattern_from_blocks(n, hessian_index[free_handles], vertex_store.dimension.values[free_handles], pairs)
     return GraphStructure(
         dimension=n, handle_count=vertex_store.count, hessian_index=hessian_index, vertex_groups=groups,
-        manifold=any(getattr(g.cls, 'oplus_jacobian_batch', None) is not None for g in groups), free_state_index=free_state_index,
+        manifold=any(getattr(g.cls, 'oplus_jacobian_batch', None) is not None for g in groups),
+        free_state_index=free_state_index,
         blocks=blocks, pattern=pattern, gradient_rows=brow_c)
 
 
@@ -325,5 +326,6 @@ def extend_structure(old, vertex_store, edge_stores, edited=()):
     gradient_rows = _interleave(old.blocks, plan, old_brows, cat[3], lambda w: w[1])
     return GraphStructure(
         dimension=n, handle_count=vertex_store.count, hessian_index=hessian_index, vertex_groups=groups,
-        manifold=any(getattr(g.cls, 'oplus_jacobian_batch', None) is not None for g in groups), free_state_index=free_state_index,
+        manifold=any(getattr(g.cls, 'oplus_jacobian_batch', None) is not None for g in groups),
+        free_state_index=free_state_index,
         blocks=blocks, pattern=pattern, gradient_rows=gradient_rows)

@@ -51,15 +51,15 @@ from ...gaussian import chi2inv, confidence_level
 from ...graph import VertexPointXY
 from ...validation import boolean, integer, positive_number
 from .algorithms import associate, check_algorithm, check_options
-from .covariance import FACTORISE, MarginalColumns, hessian_factors
 from .closure import LoopClosure
+from .covariance import FACTORISE, MarginalColumns, hessian_factors
 from .decisions import ambiguous_pairings, largest_sd, relative_sigma, sub_problem
+from .late import LateAssociation
 from .models import motion_jacobians
 from .scan_guard import ScanUndo, check_graph_and_model, check_pose_edge, check_pose_vertex, check_scan
 from .scan_kernels import block_largest_sd
 from .tracks import CONFIRMED, DROPPED, TENTATIVE, ConfirmationRules, Track
 from .verification import MergeVerification
-from .late import LateAssociation
 from .window import LocalWindow
 
 __all__ = ["OnlineFrontEnd", "ScanResult"]

@@ -25,9 +25,9 @@ from __future__ import annotations
 import numpy as np
 
 from ...graph import BaseEdge, BaseVertex, check_information
-from ..fast_graph import FastOptimizer
 from ...graph.edge import check_information_batch
 from ...validation import float_array
+from ..fast_graph import FastOptimizer
 from .models import RangeBearingModel
 
 __all__ = ["check_graph_and_model", "check_pose_vertex", "check_pose_edge", "check_scan", "ScanUndo"]

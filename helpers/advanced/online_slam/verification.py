@@ -11,7 +11,8 @@ landmark m_t = m_l + δ. The merge is δ = 0. At the optimised estimate of the m
 the errors, Ω_i the information, J_i the Jacobians of t's edges i (pose p_i, landmark):
 
     b = Σ_i J_{m,i}ᵀ Ω_i e_i                      gradient of ½χ² with respect to δ at δ = 0
-    H_δδ = Σ_i J_{m,i}ᵀ Ω_i J_{m,i},  H_δx = [Σ_{i: p_i = p} J_{m,i}ᵀ Ω_i J_{p,i} for each pose p of t's edges | H_δδ for m_l]
+    H_δδ = Σ_i J_{m,i}ᵀ Ω_i J_{m,i},
+    H_δx = [Σ_{i: p_i = p} J_{m,i}ᵀ Ω_i J_{p,i} for each pose p of t's edges | H_δδ for m_l]
     S = H_δδ − H_δx Σ_x H_xδ                     Σ_x: the joint covariance of those poses and m_l (columns of H⁻¹)
     T = bᵀ S⁻¹ b
 

@@ -40,8 +40,8 @@ import numpy as np
 
 from ...datasets import build_optimizer, read_dataset
 from ...graph import EdgeRangeBearing, EdgeSE2, VertexPointXY, VertexSE2
-from ..fast_graph import FastOptimizer
 from ...validation import boolean, integer, positive_number, same_setting
+from ..fast_graph import FastOptimizer
 from .algorithms import check_algorithm
 from .frontend import OnlineFrontEnd
 from .metrics import association_scores
