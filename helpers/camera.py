@@ -1,5 +1,5 @@
-"""The calibrated camera: OpenCV's 12-coefficient distortion model, its Jacobians and FOV (file I/O:
-``helpers.camera_io``).
+"""The calibrated camera: OpenCV's 12-coefficient distortion model, its Jacobians and FOV (the inverse model:
+``helpers.camera_inverse``; file I/O: ``helpers.camera_io``).
 
 Model (course Lab 7/8; identical to ``cv2.projectPoints`` with the RATIONAL + THIN_PRISM model, no tilt).
 For a point rPCc = [x, y, z] in the camera frame {c} (z along the optical axis, x right, y down):
@@ -37,27 +37,25 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .camera_io import (CALIB_RATIONAL_MODEL, CALIB_THIN_PRISM_MODEL, CALIB_TILTED_MODEL, _REQUIRED_FLAGS,
-                        check_calibration, read_camera_xml, write_camera_xml)
+from .camera_inverse import fold_radius, undistort
+from .camera_io import (
+    _REQUIRED_FLAGS,
+    CALIB_RATIONAL_MODEL,
+    CALIB_THIN_PRISM_MODEL,
+    CALIB_TILTED_MODEL,
+    check_calibration,
+    read_camera_xml,
+    write_camera_xml,
+)
 from .paths import data_dir
 from .rotation import rot2rpy, rpy2rot, rpy2rot_derivatives
 from .validation import boolean, float_array, integer, positive_number
 
-__all__ = [
-    "Camera",
-    "ProjectionError",
-    "PoseJacobians",
-    "FOVAngles",
-    "CALIB_RATIONAL_MODEL",
-    "CALIB_THIN_PRISM_MODEL",
-    "CALIB_TILTED_MODEL",
-    "data_dir",
-    "load_lab_camera",
-]
+__all__ = ["Camera", "ProjectionError", "PoseJacobians", "FOVAngles", "CALIB_RATIONAL_MODEL", "CALIB_THIN_PRISM_MODEL",
+           "CALIB_TILTED_MODEL", "load_lab_camera"]
 
 
-
-def load_lab_camera() -> "Camera":
+def load_lab_camera() -> Camera:
     """The Lab 8 reference calibration (``data/camera.xml``, 1920 × 1440 wide-angle action camera)."""
     return Camera.from_xml(data_dir() / "camera.xml")
 
@@ -152,7 +150,7 @@ class Camera:
         self.flags = flags
         for array in (K, d, r_cb_b, R_bc):       # read-only: fold_radius and the model depend on them
             array.setflags(write=False)
-        self.fold_radius = self._fold_radius()
+        self.fold_radius = fold_radius(d, self._distort)
 
     # -- convenience -----------------------------------------------------------------------------------
     @property
@@ -169,7 +167,7 @@ class Camera:
 
     # -- file I/O (helpers.camera_io) ---------------------------------------------------------------------
     @classmethod
-    def from_xml(cls, path) -> "Camera":
+    def from_xml(cls, path) -> Camera:
         """Read an OpenCV FileStorage file with a map ``camera`` holding ``camera_matrix`` (3×3),
         ``distortion_coefficients`` (12×1), ``flags`` (int) and ``imageSize`` (2 ints: width height)."""
         K, d, image_size, flags = read_camera_xml(path)
@@ -218,8 +216,13 @@ class Camera:
         x/z like OpenCV (no sign check — use :meth:`is_vector_within_fov` to select visible points)."""
         return_jacobian = boolean(return_jacobian, "return_jacobian")
         P = _points(rPCc, "rPCc")
-        single = P.ndim == 1
-        P = P.reshape(3, -1)
+        out = self._project(P.reshape(3, -1), return_jacobian)
+        if P.ndim == 2:
+            return out
+        return (out[0][:, 0], out[1][0]) if return_jacobian else out[:, 0]
+
+    def _project(self, P, return_jacobian):
+        """:meth:`vector_to_pixel` of the (3, N) array P, without the checks of its arguments."""
         x, y, z = P
         if np.any(z == 0):
             raise ValueError("rPCc has points with z = 0 (in the camera's focal plane); they have no pixel")
@@ -231,7 +234,7 @@ class Camera:
         if not np.all(np.isfinite(Q)):
             raise ValueError(_non_finite_pixel_message(P, u, v, np.all(np.isfinite(Q), axis=0)))
         if not return_jacobian:
-            return Q[:, 0] if single else Q
+            return Q
         _, _, duu, duv, dvu, dvv = out
         iz = 1.0 / z
         N = P.shape[1]
@@ -245,7 +248,7 @@ class Camera:
         J[:, 1, 2] = -fy * (dvu * u + dvv * v) * iz
         if not np.all(np.isfinite(J)):
             raise ValueError(_non_finite_pixel_message(P, u, v, np.all(np.isfinite(J), axis=(1, 2))))
-        return (Q[:, 0], J[0]) if single else (Q, J)
+        return Q, J
 
     def world_to_vector(self, rPNn, eta) -> np.ndarray:
         """rPCc = Rncᵀ (rPNn − rCNn) for world point(s) rPNn ((3,) or (3, N)) and camera pose
@@ -276,9 +279,9 @@ class Camera:
         rPCc = A @ (R.T @ d - t[:, None])
         self._check_projectable(rPCc, single)
         if not return_jacobian:
-            Q = self.vector_to_pixel(rPCc)
+            Q = self._project(rPCc, False)
             return Q[:, 0] if single else Q
-        Q, J = self.vector_to_pixel(rPCc, return_jacobian=True)  # (N, 2, 3)
+        Q, J = self._project(rPCc, True)  # (N, 2, 3)
         JA = J @ A  # (N, 2, 3)
         J_point = JA @ R.T
         # ∂rPCc/∂Θk = A (∂R/∂Θk)ᵀ d  → columns k of a (N, 3, 3) array
@@ -318,97 +321,28 @@ class Camera:
         return np.concatenate([eta_body[:3] + Rnb @ self.r_cb_b, rot2rpy(Rnb @ self.R_bc)])
 
     # -- inversion ---------------------------------------------------------------------------------------
-    def _fold_radius(self) -> float:
-        """Normalised radius r_f where the radial map r ↦ c(r²)·r stops increasing (∞ if it never does).
-
-        Beyond r_f a wide-angle polynomial/rational model folds back (several radii give one pixel), so the
-        model is only invertible, and only meaningful, for r < r_f (off-axis angle < atan r_f)."""
-        k1, k2, _, _, k3, k4, k5, k6 = self.dist_coeffs[:8]
-        r = np.linspace(0.0, 20.0, 20001)
-        rho = r * r
-        alpha = rho * (k1 + rho * (k2 + rho * k3))
-        beta = rho * (k4 + rho * (k5 + rho * k6))
-        a_r = k1 + 2 * k2 * rho + 3 * k3 * rho * rho
-        b_r = k4 + 2 * k5 * rho + 3 * k6 * rho * rho
-        den = 1.0 + beta
-        with np.errstate(divide="ignore", invalid="ignore"):
-            c = (1.0 + alpha) / den
-            slope = c + 2 * rho * (a_r * den - (1.0 + alpha) * b_r) / (den * den)  # d(c r)/dr
-        bad = ~(slope > 0)
-        if not np.any(bad):
-            return np.inf
-        k = int(np.argmax(bad))
-        if k == 0:
-            return 0.0
-        lo, hi = float(r[k - 1]), float(r[k])  # refine the sign change of the slope by bisection
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            ud, _ = self._distort(np.array([mid - 1e-7, mid + 1e-7]), np.zeros(2), False)
-            lo, hi = (mid, hi) if ud[1] > ud[0] else (lo, mid)
-        return lo
-
     def pixel_to_vector(self, pixels, strict: bool = True, tol: float = 1e-12, max_iter: int = 100) -> np.ndarray:
         """Unit vector(s) in {c} whose projection is the given pixel(s) ((2,) or (2, N) → (3,) or (3, N)).
 
-        Exact inversion of the distortion model by damped Newton iterations started at the distorted
-        normalised point, vectorised over all pixels (the loop runs over iterations, never over pixels) and
-        confined to the invertible range r < ``fold_radius``. A pixel beyond the image of that range (e.g.
-        the extreme corners of a strongly distorting wide-angle lens) has no exact preimage: with
-        ``strict`` it raises ValueError, otherwise the least-squares preimage (at the fold) is returned.
+        Exact inversion of the distortion model (``camera_inverse.undistort``), confined to the invertible range
+        r < ``fold_radius``. A pixel beyond the image of that range (e.g. the extreme corners of a strongly
+        distorting wide-angle lens) has no exact preimage: with ``strict`` it raises ValueError, otherwise the
+        least-squares preimage (at the fold) is returned.
         """
-        if not isinstance(strict, (bool, np.bool_)):
-            raise ValueError(f"strict must be True or False, got {strict!r}")
+        strict = boolean(strict, "strict")
         tol = positive_number(tol, "tol")
         max_iter = integer(max_iter, "max_iter", minimum=1)
         Qp = _points(pixels, "pixels", rows=2)
-        single = Qp.ndim == 1
-        Qp = Qp.reshape(2, -1)
+        Q2 = Qp.reshape(2, -1)
         fx, fy, cx, cy = self.K[0, 0], self.K[1, 1], self.K[0, 2], self.K[1, 2]
-        tu, tv = (Qp[0] - cx) / fx, (Qp[1] - cy) / fy  # distorted normalised coordinates
-        rho_max = self.fold_radius ** 2
-        u, v = tu.copy(), tv.copy()
-        scale = np.where(u * u + v * v > rho_max, np.sqrt(rho_max / np.maximum(u * u + v * v, 1e-300)), 1.0)
-        u, v = u * scale, v * scale
-
-        def residual(u, v):
-            ud, vd = self._distort(u, v, False)
-            return ud - tu, vd - tv
-
-        ru, rv = residual(u, v)
-        cost = ru * ru + rv * rv
-        for _ in range(max_iter):
-            active = cost > tol * tol
-            if not np.any(active):
-                break
-            _, _, a, b, c, d = self._distort(u, v, True)
-            det = a * d - b * c
-            det = np.where(det == 0, np.finfo(float).tiny, det)
-            du = -(d * ru - b * rv) / det
-            dv = -(-c * ru + a * rv) / det
-            step = np.ones_like(u)
-            # backtracking line search for all pixels at once: halve the step wherever the cost did not
-            # drop or the step left the invertible range
-            for _ in range(40):
-                nu, nv = u + step * du, v + step * dv
-                nru, nrv = residual(nu, nv)
-                ncost = nru * nru + nrv * nrv
-                ok = (ncost < cost) & (nu * nu + nv * nv < rho_max)
-                bad = active & ~ok & (step > 1e-12)
-                if not np.any(bad):
-                    break
-                step = np.where(bad, 0.5 * step, step)
-            accept = active & ok
-            if not np.any(accept):
-                break
-            u, v = np.where(accept, nu, u), np.where(accept, nv, v)
-            ru, rv = np.where(accept, nru, ru), np.where(accept, nrv, rv)
-            cost = np.where(accept, ncost, cost)
+        u, v, cost = undistort(self._distort, (Q2[0] - cx) / fx, (Q2[1] - cy) / fy, self.fold_radius ** 2, tol,
+                               max_iter)
         if strict and not np.all(cost <= (1e3 * tol) ** 2):
             raise ValueError("pixels contains pixel(s) outside the invertible range of the distortion model "
                              "(beyond the fold of the lens model); pass strict=False for the least-squares ray")
         V = np.vstack([u, v, np.ones_like(u)])
         V /= np.linalg.norm(V, axis=0)
-        return V[:, 0] if single else V
+        return V[:, 0] if Qp.ndim == 1 else V
 
     # -- field of view -----------------------------------------------------------------------------------
     def fov_angles(self) -> FOVAngles:
@@ -445,7 +379,7 @@ class Camera:
         inside = (P[2] > 0) & (off_axis < self.max_off_axis_angle())
         Q = np.full((2, P.shape[1]), -np.inf)
         if np.any(inside):
-            Q[:, inside] = self.vector_to_pixel(P[:, inside])
+            Q[:, inside] = self._project(P[:, inside], False)
         inside &= (Q[0] >= -0.5) & (Q[0] <= self.width - 0.5) & (Q[1] >= -0.5) & (Q[1] <= self.height - 0.5)
         return bool(inside[0]) if single else inside
 

@@ -17,7 +17,7 @@ Operations (n = size, idx an index list):
 - confidence region (Lab 7 eqs 19–24): c = 2Φ(n_σ) − 1;  x is inside iff wᵀw ≤ χ²_n(c).
 
 Singular square roots (a zero on the diagonal of S, e.g. a state block with no uncertainty) are allowed
-at construction and in marginal / transform / join / simulate / confidence_ellipse. Methods that must
+at construction and in marginal / transform / simulate / confidence_ellipse. Methods that must
 solve with S (log_pdf, sq_mahalanobis, is_within_confidence_region, conditional's R1) raise ValueError
 when the triangular factor they solve with has a zero diagonal entry.
 """
@@ -168,7 +168,7 @@ class Gaussian:
 
     # -- constructors ----------------------------------------------------------------------------------
     @classmethod
-    def from_sqrt_cov(cls, S) -> "Gaussian":
+    def from_sqrt_cov(cls, S) -> Gaussian:
         """Zero-mean Gaussian N(0, SᵀS) (used for additive noise)."""
         S = float_array(S, "S")
         if S.ndim != 2:
@@ -176,7 +176,7 @@ class Gaussian:
         return cls(np.zeros(S.shape[0]), S)
 
     @classmethod
-    def from_cov(cls, mu, P) -> "Gaussian":
+    def from_cov(cls, mu, P) -> Gaussian:
         """N(μ, P) from a dense covariance: S = Lᵀ with P = L Lᵀ (Cholesky). P must be symmetric PD."""
         mu = finite_vector(float_array(mu, "mu"), "mu")
         if mu.size == 0:
@@ -194,14 +194,6 @@ class Gaussian:
         g = object.__new__(cls)           # μ and Lᵀ are already checked: skip the constructor's checks
         g._mu, g._S = mu.copy(), np.triu(L.T)
         return g
-
-    @classmethod
-    def join(cls, a: "Gaussian", b: "Gaussian") -> "Gaussian":
-        """Joint of independent Gaussians: μ = [μa; μb], S = blkdiag(Sa, Sb)."""
-        for name, g in (("a", a), ("b", b)):
-            if not isinstance(g, Gaussian):
-                raise ValueError(f"{name} must be a Gaussian, got {type(g).__name__}")
-        return cls(np.concatenate([a._mu, b._mu]), linalg.block_diag(a._S, b._S))
 
     # -- accessors -------------------------------------------------------------------------------------
     @property
@@ -234,12 +226,12 @@ class Gaussian:
         return f"Gaussian(size={self.size})"
 
     # -- structural operations -------------------------------------------------------------------------
-    def marginal(self, idx) -> "Gaussian":
+    def marginal(self, idx) -> Gaussian:
         """Marginal of the components ``idx`` (any order, non-contiguous allowed): QR of S[:, idx]."""
         idx = index_list(idx, self.size, "idx", integral_floats=True)
         return Gaussian(self._mu[idx], square_r_factor(self._S[:, idx]))
 
-    def conditional(self, idx_a, idx_b, x_b) -> "Gaussian":
+    def conditional(self, idx_a, idx_b, x_b) -> Gaussian:
         """p(x_A | x_B = x_b) by QR of [S[:, B], S[:, A]] (Lab 5 eqs 23–26). A and B must be disjoint, and B
         must not repeat an index (conditioning on x_i twice is ill-posed)."""
         idx_a = index_list(idx_a, self.size, "idx_a", integral_floats=True)
@@ -255,7 +247,7 @@ class Gaussian:
         z = linalg.solve_triangular(R1, x_b - self._mu[idx_b], trans="T", lower=False)
         return Gaussian(self._mu[idx_a] + R2.T @ z, R3)
 
-    def transform(self, h, noise: "Gaussian | None" = None) -> "Gaussian":
+    def transform(self, h, noise: Gaussian | None = None) -> Gaussian:
         """First-order (affine) transform through y = h(x): ``h(x)`` returns ``(y, J)`` with J = ∂h/∂x.
 
         S_y = top m rows of R in QR([S Jᵀ; S_R]); ``noise`` (optional) must be a zero-mean Gaussian of

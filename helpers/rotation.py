@@ -26,7 +26,6 @@ import numpy as np
 from .validation import float_array
 
 __all__ = [
-    "skew",
     "rotx",
     "roty",
     "rotz",
@@ -41,14 +40,6 @@ def _angle(a, name):
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{name} must be finite, got {a!r}")
     return a
-
-
-def skew(v) -> np.ndarray:
-    """Cross-product matrix S(v) with S(v) w = v × w; v of shape (3,) → (3, 3)."""
-    v = float_array(v, "v")
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise ValueError(f"v must be a finite vector of shape (3,), got shape {v.shape}")
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _elementary(a, axis: int, name: str, derivative: bool):

@@ -1,42 +1,31 @@
 """The lab scene, rendered: a chessboard on a self-similar textured plane seen through the calibrated camera.
 
-The Lab 8 demo photograph is not available, so the workbook renders its own. The world frame
-{n} is the chessboard frame: origin at the first inner corner, x along the 10-corner direction, y along the
-7-corner direction, the board in the plane z = 0, z pointing into the plane (away from the camera).
+The Lab 8 demo photograph is not available, so the workbook renders its own. The world frame {n} is the
+chessboard frame: origin at the first inner corner, x along the 10-corner direction, y along the 7-corner
+direction, the board in the plane z = 0, z pointing into the plane (away from the camera). On that plane:
 
-Scene content (all on the plane z = 0 unless said otherwise)
-  * a 10 × 7-inner-corner chessboard (11 × 8 squares of 22 mm, x ∈ [−0.022, 0.220], y ∈ [−0.022, 0.154])
-    printed on a white sheet with a 14 mm margin (the quiet zone a board detector needs);
-  * a self-similar texture everywhere else: fractal value noise (six octaves, wavelengths 1.5 mm … 48 mm,
-    each randomly rotated), pushed through a soft threshold so it looks like blobs/speckle of every size —
-    a corner detector finds thousands of features;
-  * small fiducial stickers (a 2 × 2 checker of 11 mm squares on a white 36 mm square) centred on the
-    landmark positions of the lab demo that lie on the plane off the board, so every landmark has a true
-    corner at its true position (landmarks 5 and 6 are board corners already);
-  * landmark 8 lies 0.148 m in front of the plane (camera side): it gets a floating 40 mm card parallel to
-    the plane carrying the same checker (it occludes the plane behind it);
-  * optional blank "occluder" patches (uniform grey squares on the plane) to hide landmarks.
+  * a 10 × 7-inner-corner chessboard (11 × 8 squares of 22 mm) on a white sheet with a 14 mm margin;
+  * everywhere else a self-similar texture: fractal value noise (six octaves, wavelengths 1.5 mm … 48 mm,
+    each randomly rotated) through a soft threshold, blobs and speckle of every size — thousands of corners;
+  * fiducial stickers (a 2 × 2 checker of 11 mm squares on a white 36 mm square) on the lab landmarks that
+    lie on the plane off the board, so every landmark has a true corner (landmarks 5 and 6 are board
+    corners); landmark 8 lies 0.148 m in front of the plane and gets a floating 40 mm card with the checker;
+  * optional blank grey "occluder" squares that hide landmarks.
 
-Rendering (for every pixel, no loop over pixels)
-  1. pixel → ray: the camera model is inverted exactly (``Camera.pixel_to_vector``) on a coarse grid (every
-     16 px) and the normalised coordinates (x/z, y/z) are interpolated bicubically to every sub-pixel sample
-     — the map is smooth, so within 90 % of the lens model's largest image radius the interpolation error is
-     far below 0.01 px (``helpers.scene_truth.ray_interpolation_error``); pixels near the fold, where it
-     grows, are rendered dark;
-  2. ray → plane: with Rnc = rpy2rot(Θnc) the ray d = Rnc [x/z, y/z, 1]ᵀ from rCNn meets z = z₀ at
-     t = (z₀ − r_z)/d_z, point rCNn + t d;
-  3. albedo at that point; each texture octave fades out when the pixel footprint on the plane (√|det| of
-     ∂(X, Y)/∂(u, v)) approaches its wavelength (analytic anti-aliasing), and 2 × 2 supersampling averages
-     the rest;
-  4. shading (a smooth illumination gradient and radial vignetting), mild Gaussian blur (optics),
-     Gaussian sensor noise from the seeded generator, quantisation to uint8.
+Rendering, vectorised over all pixels: (1) pixel → ray: the lens model is inverted exactly
+(``Camera.pixel_to_vector``) every 16 px and (x/z, y/z) interpolated bicubically (error far below 0.01 px
+within 90 % of the model's largest image radius, ``helpers.scene_truth.ray_interpolation_error``; pixels
+near the lens fold are rendered dark); (2) ray → plane: d = Rnc [x/z, y/z, 1]ᵀ from rCNn meets z = z₀ at
+t = (z₀ − r_z)/d_z; (3) albedo there, each texture octave faded out as the pixel's footprint on the plane
+approaches its wavelength (analytic anti-aliasing), the sharp-edged objects supersampled; (4) shading
+(illumination gradient, vignetting), a mild Gaussian blur, seeded Gaussian sensor noise, uint8.
 
 The same seed gives the same bytes. ``recover_pose`` repeats the lab's pose recovery: findChessboardCorners
 → cornerSubPix → solvePnP with the 12-coefficient model, Rnc = Rcnᵀ, rCNn = −Rcnᵀ t, Θnc = rot2rpy(Rnc).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -46,19 +35,8 @@ from .rotation import rot2rpy, rpy2rot
 from .state_slam import LAB_DEMO_CAMERA_POSE, lab_demo_state
 from .validation import finite_number, float_array, integer, positive_number
 
-__all__ = [
-    "REFERENCE_POSE",
-    "LAB_LANDMARKS",
-    "PATTERN_SIZE",
-    "SQUARE_SIZE",
-    "RenderedScene",
-    "board_points",
-    "render_lab_scene",
-    "find_board_corners",
-    "recover_pose",
-    "TEXTURE_WAVELENGTHS",
-    "ChessboardNotFoundError",
-]
+__all__ = ["REFERENCE_POSE", "LAB_LANDMARKS", "PATTERN_SIZE", "SQUARE_SIZE", "TEXTURE_WAVELENGTHS", "RenderedScene",
+           "board_points", "render_lab_scene", "find_board_corners", "recover_pose", "ChessboardNotFoundError"]
 
 #: Camera pose recovered from the original photograph: [rCNn (m); Θnc (rad)].
 REFERENCE_POSE = LAB_DEMO_CAMERA_POSE.copy()
@@ -74,11 +52,9 @@ CHECKER_HALF = 0.011        # 2 × 2 checker: squares of 11 mm around the centre
 CARD_HALF = 0.020           # floating card half-size (landmark 8), m
 OCCLUDER_GREY = 0.55
 
-_OCTAVES = (0.0015, 0.003, 0.006, 0.012, 0.024, 0.048)   # wavelengths of the texture octaves, m
+TEXTURE_WAVELENGTHS = (0.0015, 0.003, 0.006, 0.012, 0.024, 0.048)   # m, the six octaves of the floor texture
 _LATTICE = (257, 263, 269, 271, 277, 281)                 # periodic lattices (co-prime sizes)
 _GRID_STEP = 16                                           # px between exact pixel→ray inversions
-#: Wavelengths (m) of the six octaves of the fractal floor texture.
-TEXTURE_WAVELENGTHS = _OCTAVES
 
 
 class ChessboardNotFoundError(RuntimeError):
@@ -91,7 +67,7 @@ class RenderedScene:
 
     image : (H, W) uint8 gray image. pose : the true camera pose [rCNn; Θnc] (6,).
     markers : (3, k) world positions that carry a fiducial (true corner) in the image.
-    occluders : (2, q) plane positions covered by a blank patch. seed : the texture/noise seed.
+    occluders : (2, q) plane positions covered by a blank patch of half-size occluder_half (m). seed : the seed.
     """
 
     image: np.ndarray
@@ -100,15 +76,6 @@ class RenderedScene:
     occluders: np.ndarray
     seed: int
     occluder_half: float = 0.03
-    info: dict = field(default_factory=dict)
-
-    @property
-    def rCNn(self) -> np.ndarray:
-        return self.pose[:3]
-
-    @property
-    def Thetanc(self) -> np.ndarray:
-        return self.pose[3:]
 
 
 def board_points(pattern_size=PATTERN_SIZE, square_size=SQUARE_SIZE) -> np.ndarray:
@@ -119,13 +86,10 @@ def board_points(pattern_size=PATTERN_SIZE, square_size=SQUARE_SIZE) -> np.ndarr
     return np.vstack([j.ravel() * square_size, i.ravel() * square_size, np.zeros(nx * ny)])
 
 
-# ----------------------------------------------------------------------------------------------------
-# validation
-# ----------------------------------------------------------------------------------------------------
+# -- validation ----------------------------------------------------------------------------------
 def _check_camera(camera):
-    for name in ("K", "dist_coeffs", "image_size", "pixel_to_vector", "world_to_pixel"):
-        if not hasattr(camera, name):
-            raise ValueError(f"camera must be a helpers.camera.Camera, got {type(camera).__name__}")
+    if not all(hasattr(camera, a) for a in ("K", "dist_coeffs", "image_size", "pixel_to_vector", "world_to_pixel")):
+        raise ValueError(f"camera must be a helpers.camera.Camera, got {type(camera).__name__}")
 
 
 def _check_pattern(pattern_size):
@@ -151,9 +115,7 @@ def _check_points(P, name, rows):
     return P
 
 
-# ----------------------------------------------------------------------------------------------------
-# texture (procedural, vectorised over all samples)
-# ----------------------------------------------------------------------------------------------------
+# -- texture (procedural, vectorised over all samples) -------------------------------------------
 def _smoothstep01(x):
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x)
@@ -161,8 +123,8 @@ def _smoothstep01(x):
 
 def _make_lattices(rng):
     lat = [rng.standard_normal((n, n)).astype(np.float32) for n in _LATTICE]
-    angles = rng.uniform(0.0, 2.0 * np.pi, len(_OCTAVES))
-    shifts = rng.uniform(0.0, 1.0, (len(_OCTAVES), 2))
+    angles = rng.uniform(0.0, 2.0 * np.pi, len(TEXTURE_WAVELENGTHS))
+    shifts = rng.uniform(0.0, 1.0, (len(TEXTURE_WAVELENGTHS), 2))
     return lat, angles, shifts
 
 
@@ -172,7 +134,7 @@ def _texture(X, Y, footprint, lattices):
     approaches λ_k, then a soft threshold 0.5 + 0.34 tanh(2.2 n)."""
     lat, angles, shifts = lattices
     total = np.zeros(X.shape, np.float32)
-    for k, lam in enumerate(_OCTAVES):
+    for k, lam in enumerate(TEXTURE_WAVELENGTHS):
         fade = _smoothstep01(2.0 - 2.5 * footprint / lam)        # 1 while footprint < 0.4 λ, 0 beyond 0.8 λ
         if not np.any(fade > 0):
             continue
@@ -181,7 +143,7 @@ def _texture(X, Y, footprint, lattices):
         u = np.mod((c * X - s * Y) / lam + shifts[k, 0] * n, n).astype(np.float32)
         v = np.mod((s * X + c * Y) / lam + shifts[k, 1] * n, n).astype(np.float32)
         octave = cv2.remap(lat[k], u, v, cv2.INTER_CUBIC, borderMode=cv2.BORDER_WRAP)
-        total += np.float32((lam / _OCTAVES[-1]) ** 0.35) * fade * octave
+        total += np.float32((lam / TEXTURE_WAVELENGTHS[-1]) ** 0.35) * fade * octave
     return 0.5 + 0.34 * np.tanh(2.2 * total)
 
 
@@ -223,9 +185,7 @@ def _sharp_albedo(X, Y, Xc, Yc, background, plane_markers, occluders, occluder_h
     return out
 
 
-# ----------------------------------------------------------------------------------------------------
-# rendering
-# ----------------------------------------------------------------------------------------------------
+# -- rendering -----------------------------------------------------------------------------------
 def _ray_splines(camera, width, height):
     """Bicubic splines (row, column) ↦ x/z and ↦ y/z of the exact inverse lens model, fitted on nodes every
     _GRID_STEP px (the model is inverted exactly there, by Camera.pixel_to_vector)."""
@@ -253,16 +213,14 @@ def _normalised_rays(camera, width, height):
     # beyond the fold: distorted radius larger than the largest radius the model can produce
     fx, fy, cx, cy = camera.K[0, 0], camera.K[1, 1], camera.K[0, 2], camera.K[1, 2]
     rf = getattr(camera, "fold_radius", np.inf)
+    dark = np.zeros((height, width), bool)
     if np.isfinite(rf):
         rd_max = np.hypot(*camera.vector_to_pixel(np.array([rf, 0.0, 1.0])) - np.array([cx, cy])) / fx
         rd = np.hypot((pu[None, :] - cx) / fx, (pv[:, None] - cy) / fy)
-        dark = np.zeros((height, width), bool)
         iy, ix = np.nonzero(rd > 0.9 * rd_max)              # only near the corners: check the round trip
         if iy.size:
             back = camera.vector_to_pixel(np.vstack([xn[iy, ix], yn[iy, ix], np.ones(iy.size)]))
             dark[iy, ix] = np.hypot(back[0] - ix, back[1] - iy) > 0.05
-    else:
-        dark = np.zeros((height, width), bool)
     return xn, yn, dark
 
 
@@ -403,9 +361,7 @@ def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=N
                          occluder_half=float(occluder_half))
 
 
-# ----------------------------------------------------------------------------------------------------
-# the lab's pose recovery
-# ----------------------------------------------------------------------------------------------------
+# -- the lab's pose recovery ---------------------------------------------------------------------
 def find_board_corners(image, pattern_size=PATTERN_SIZE) -> np.ndarray:
     """Inner chessboard corners (2, nx·ny), sub-pixel refined, in OpenCV's order (row-major from the first
     corner). Raises ChessboardNotFoundError when the board is not found."""
@@ -440,6 +396,4 @@ def recover_pose(image, camera, pattern_size=PATTERN_SIZE, square_size=SQUARE_SI
     if not ok:
         raise ChessboardNotFoundError("solvePnP failed")
     Rcn, _ = cv2.Rodrigues(rvec)
-    Rnc = Rcn.T
-    rCNn = -Rcn.T @ tvec.ravel()
-    return np.concatenate([rCNn, rot2rpy(Rnc)]), corners
+    return np.concatenate([-Rcn.T @ tvec.ravel(), rot2rpy(Rcn.T)]), corners        # rCNn, Θnc

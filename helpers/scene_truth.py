@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rotation import rpy2rot
-from .scene import CARD_HALF, STICKER_HALF, _check_camera, _check_pose, _ray_splines
+from .scene import CARD_HALF, STICKER_HALF, _check_camera, _check_pose, _plane_intersector, _ray_splines
 from .validation import finite_number, float_array, rng_seed
 
 __all__ = ["pixel_to_plane", "fiducial_half_size", "ray_interpolation_error"]
@@ -18,17 +17,15 @@ __all__ = ["pixel_to_plane", "fiducial_half_size", "ray_interpolation_error"]
 
 def pixel_to_plane(camera, pose, pixels, z0: float = 0.0) -> np.ndarray:
     """World point(s) where the ray(s) of pixel(s) ((2,) or (2, N)) from the camera at ``pose`` = [rCNn; Θnc]
-    meet the plane z = ``z0``: rCNn + t Rnc v with v = camera.pixel_to_vector(pixel) and
-    t = (z0 − r_z)/(Rnc v)_z. Rays that never reach the plane (t ≤ 0) give NaN. Returns (3,) or (3, N)."""
+    meet the plane z = ``z0`` (the renderer's ray–plane intersection, rays from ``camera.pixel_to_vector``).
+    Rays that never reach the plane give NaN. Returns (3,) or (3, N)."""
     _check_camera(camera)
     pose = _check_pose(pose)
     z0 = finite_number(z0, "z0")
-    V = camera.pixel_to_vector(pixels, strict=False)
-    d = rpy2rot(pose[3:]) @ V
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (z0 - pose[2]) / d[2]
-    t = np.where(t > 0, t, np.nan)
-    return pose[:3].reshape((3,) + (1,) * (d.ndim - 1)) + t * d
+    V = camera.pixel_to_vector(pixels, strict=False)                  # z > 0: inside the lens fold
+    X, Y = _plane_intersector(pose)(V[0] / V[2], V[1] / V[2], z0)
+    P = np.array([X, Y, np.full_like(X, z0)])
+    return np.where(np.isfinite(P[0]), P, np.nan)
 
 
 def fiducial_half_size(marker) -> float:

@@ -4,7 +4,8 @@ import cv2
 import numpy as np
 import pytest
 
-from helpers.camera import Camera, data_dir, load_lab_camera
+from helpers.camera import Camera, load_lab_camera
+from helpers.paths import data_dir
 from helpers.rotation import rpy2rot
 
 FX, FY, CX, CY = 843.79359356556120, 841.69642468249765, 960.45698792357746, 725.16973181457206
@@ -123,11 +124,13 @@ def test_world_to_pixel_jacobians_central_differences(cam):
         assert jac.wrt_point.shape == (4, 2, 3)
         for k in range(4):
             p = P[:, k]
-            np.testing.assert_allclose(jac.wrt_point[k], central_diff(lambda x: cam.world_to_pixel(x, eta), p, 1e-6),
-                                       rtol=1e-6, atol=1e-4)
-            fd_pos = central_diff(lambda r: cam.world_to_pixel(p, np.concatenate([r, eta[3:]])), eta[:3], 1e-6)
+            fd_point = central_diff(lambda x, eta=eta: cam.world_to_pixel(x, eta), p, 1e-6)
+            np.testing.assert_allclose(jac.wrt_point[k], fd_point, rtol=1e-6, atol=1e-4)
+            fd_pos = central_diff(lambda r, p=p, eta=eta: cam.world_to_pixel(p, np.concatenate([r, eta[3:]])), eta[:3],
+                                  1e-6)
             np.testing.assert_allclose(jac.wrt_position[k], fd_pos, rtol=1e-6, atol=1e-4)
-            fd_ang = central_diff(lambda a: cam.world_to_pixel(p, np.concatenate([eta[:3], a])), eta[3:], 1e-7)
+            fd_ang = central_diff(lambda a, p=p, eta=eta: cam.world_to_pixel(p, np.concatenate([eta[:3], a])), eta[3:],
+                                  1e-7)
             np.testing.assert_allclose(jac.wrt_angles[k], fd_ang, rtol=1e-6, atol=1e-3)
         q, j1 = cam.world_to_pixel(P[:, 1], eta, return_jacobian=True)
         np.testing.assert_allclose(q, Q[:, 1], rtol=1e-13)
@@ -145,7 +148,7 @@ def test_body_to_pixel_with_mounting_offset_central_differences(cam):
     np.testing.assert_allclose(Q, mounted.world_to_pixel(P, eta_c), atol=1e-9)
     for k in range(6):
         p = P[:, k]
-        f_b = lambda e: mounted.body_to_pixel(p, e)  # noqa: E731
+        f_b = lambda e, p=p: mounted.body_to_pixel(p, e)  # noqa: E731
         fd = central_diff(f_b, eta_b, 1e-7)
         np.testing.assert_allclose(jac.wrt_position[k], fd[:, :3], rtol=1e-6, atol=1e-3)
         np.testing.assert_allclose(jac.wrt_angles[k], fd[:, 3:], rtol=1e-6, atol=1e-3)

@@ -2,9 +2,13 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from helpers.association.compatibility import (individual_compatibility, individual_compatibility_matrix,
-                                               joint_compatibility, lab_test_fixture, landmark_marginals,
-                                               uniform_surprisal)
+from helpers.association.common import prepare
+from helpers.association.compatibility import (
+    individual_compatibility,
+    joint_compatibility,
+    lab_test_fixture,
+    uniform_surprisal,
+)
 from helpers.gaussian import Gaussian
 
 
@@ -35,10 +39,9 @@ def test_individual_three_landmarks_thirteen_features(fx):
 
 
 def test_individual_near_threshold_rejection(fx):
-    d2, compat = individual_compatibility_matrix(fx["Y13"], fx["density_3"])
-    assert d2[5, 0] == pytest.approx(12.022, abs=5e-4)
-    assert d2[5, 0] > 11.829158081900795
-    assert not compat[5, 0]
+    d2 = prepare(fx["density_3"], fx["Y13"]).ic_d2                  # (landmark, feature)
+    assert d2[0, 5] == pytest.approx(12.022, abs=5e-4)
+    assert d2[0, 5] > 11.829158081900795
     assert not individual_compatibility(5, 0, fx["Y13"], fx["density_3"])
     # a looser confidence level (c = 0.998, i.e. n_sigma ≈ 3.09) would wrongly accept it
     n_sigma_loose = scipy.stats.norm.ppf((1 + 0.998) / 2)
@@ -50,32 +53,21 @@ def test_individual_near_threshold_rejection(fx):
     ("Y13", "density_3", {(6, 0): 1.349, (7, 1): 2.238, (9, 1): 4.437, (10, 2): 4.435, (11, 2): 7.066,
                           (12, 2): 2.056})])
 def test_individual_squared_distances(fx, Yname, dname, pairs):
-    d2, _ = individual_compatibility_matrix(fx[Yname], fx[dname])
+    d2 = prepare(fx[dname], fx[Yname]).ic_d2                      # the distances the L09 algorithms use
     for (i, j), value in pairs.items():
-        assert d2[i, j] == pytest.approx(value, abs=5e-4 if value < 10 else 5e-3)
+        assert d2[j, i] == pytest.approx(value, abs=5e-4 if value < 10 else 5e-3)
 
 
-def test_matrix_agrees_with_scalar_and_dense(fx):
+def test_gate_follows_the_dense_formula(fx):
     Y, d = fx["Y13"], fx["density_3"]
-    d2, compat = individual_compatibility_matrix(Y, d)
-    assert d2.shape == compat.shape == (13, 3)
-    scalar = np.array([[individual_compatibility(i, j, Y, d) for j in range(3)] for i in range(13)])
-    np.testing.assert_array_equal(compat, scalar)
+    gate = 11.829158081900795
     P = d.cov
     for j in range(3):
         Pj = P[2 * j:2 * j + 2, 2 * j:2 * j + 2]
         D = Y - d.mean[2 * j:2 * j + 2, None]
-        np.testing.assert_allclose(d2[:, j], np.einsum("im,ij,jm->m", D, np.linalg.inv(Pj), D), rtol=1e-10)
-
-
-def test_landmark_marginals_match_gaussian_marginal(fx):
-    d = fx["density_3"]
-    mu, S = landmark_marginals(d)
-    for j in range(3):
-        m = d.marginal([2 * j, 2 * j + 1])
-        np.testing.assert_allclose(S[j].T @ S[j], m.cov, rtol=1e-12)
-        np.testing.assert_array_equal(mu[j], m.mean)
-        assert S[j, 1, 0] == 0
+        d2 = np.einsum("im,ij,jm->m", D, np.linalg.inv(Pj), D)
+        assert np.abs(d2 - gate).min() > 1e-3 * gate                 # no pair within round-off of the gate
+        assert [individual_compatibility(i, j, Y, d) for i in range(13)] == (d2 <= gate).tolist()
 
 
 # ---------------------------------------------------------------------------- joint compatibility
@@ -134,9 +126,9 @@ def test_bad_inputs(fx):
     with pytest.raises(ValueError, match="Y must have shape"):
         individual_compatibility(0, 0, Y.T, d)
     with pytest.raises(ValueError, match="Y must have shape"):
-        individual_compatibility_matrix(np.zeros((2, 0)), d)
+        individual_compatibility(0, 0, np.zeros((2, 0)), d)
     with pytest.raises(ValueError, match="Y must be finite"):
-        individual_compatibility_matrix(np.full((2, 3), np.nan), d)
+        individual_compatibility(0, 0, np.full((2, 3), np.nan), d)
     with pytest.raises(ValueError, match="i must be an integer"):
         individual_compatibility(13, 0, Y, d)
     with pytest.raises(ValueError, match="j must be an integer"):
@@ -144,13 +136,11 @@ def test_bad_inputs(fx):
     with pytest.raises(ValueError, match="density must be a Gaussian"):
         individual_compatibility(0, 0, Y, np.eye(2))
     with pytest.raises(ValueError, match="density must have even size"):
-        individual_compatibility_matrix(Y, Gaussian(np.zeros(3), np.eye(3)))
-    with pytest.raises(ValueError, match="singular"):
-        individual_compatibility_matrix(Y, Gaussian(np.zeros(2), np.diag([1.0, 0.0])))
+        individual_compatibility(0, 0, Y, Gaussian(np.zeros(3), np.eye(3)))
     with pytest.raises(ValueError, match="n_sigma"):
         individual_compatibility(0, 0, Y, d, n_sigma=0.0)
     with pytest.raises(ValueError, match="n_sigma"):
-        individual_compatibility_matrix(Y, d, n_sigma=np.nan)
+        individual_compatibility(0, 0, Y, d, n_sigma=np.nan)
     with pytest.raises(ValueError, match="idx must have one entry per landmark"):
         joint_compatibility([6, 7], sU, Y, d)
     with pytest.raises(ValueError, match="idx entries must be -1"):

@@ -125,15 +125,12 @@ def test_conditional_matches_dense_formula():
     np.testing.assert_allclose(c.cov, P[np.ix_(A, A)] - Pab @ np.linalg.solve(Pbb, Pab.T), atol=1e-10)
 
 
-def test_join_and_constructors():
+def test_constructors():
     a = Gaussian.from_cov([1.0, 2.0], [[4.0, 1.0], [1.0, 3.0]])
     np.testing.assert_allclose(a.cov, [[4.0, 1.0], [1.0, 3.0]], atol=1e-14)
     b = Gaussian.from_sqrt_cov([[2.0]])
     np.testing.assert_array_equal(b.mean, [0.0])
-    j = Gaussian.join(a, b)
-    assert j.size == 3
-    np.testing.assert_allclose(j.cov[:2, :2], a.cov)
-    assert j.cov[2, 2] == 4.0 and np.all(j.cov[:2, 2] == 0)
+    assert b.cov[0, 0] == 4.0
 
 
 # ---------------------------------------------------------------------------- transform
@@ -243,8 +240,6 @@ def test_constructor_bad_inputs():
         Gaussian.from_cov([0.0, 0.0], [[1.0, 0.5], [0.0, 1.0]])
     with pytest.raises(ValueError, match="P must have shape"):
         Gaussian.from_cov([0.0, 0.0], np.eye(3))
-    with pytest.raises(ValueError, match="b must be a Gaussian"):
-        Gaussian.join(Gaussian([0.0], [[1.0]]), np.eye(1))
 
 
 def test_singular_S_is_accepted_but_solves_raise():

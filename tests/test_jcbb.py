@@ -1,5 +1,5 @@
-"""JCBB: hand-made answers, equality with an exhaustive search and between the two tiers (jcbb_reference and
-jcbb), the incremental D², budget, trace, bad input."""
+"""JCBB: hand-made answers, equality with an exhaustive search, the incremental D² and conditional predictions,
+budget, trace, bad input."""
 import itertools
 
 import numpy as np
@@ -8,8 +8,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from helpers.association.common import joint_sq_mahalanobis, prepare
-from helpers.association.jcbb import (TRACE_BEST, TRACE_BOUND, TRACE_EXPANDED, TRACE_JC_FAIL, jcbb, jcbb_reference,
-                                     level_order)
+from helpers.association.jcbb import (
+    TRACE_BEST,
+    TRACE_BOUND,
+    TRACE_EXPANDED,
+    TRACE_JC_FAIL,
+    condition_on_pairing,
+    jcbb,
+    level_order,
+)
 from helpers.association.nearest_neighbour import mahalanobis_nn
 from helpers.association.scenarios import range_bearing_scenario
 from helpers.gaussian import Gaussian, chi2inv, confidence_level
@@ -151,6 +158,7 @@ def test_trace_records_the_tree():
     Y = np.column_stack([mu[0] + [0.6, 0], mu[1] + [0.6, 0], mu[2] + [0.6, 0], [0.3, 0.05]])
     res = jcbb(density, Y, trace=True)
     tr = res.stats["trace"]
+    assert np.array_equal(jcbb(density, Y).idx, res.idx) and jcbb(density, Y).stats["nodes"] == res.stats["nodes"]
     assert tr.parent[0] == -1 and tr.level[0] == -1
     expanded = np.isin(tr.status, [TRACE_EXPANDED, TRACE_BEST])
     assert np.count_nonzero(expanded) == res.stats["nodes"]
@@ -218,58 +226,6 @@ def test_tree_and_association_figures(tmp_path, monkeypatch):
     plt.close(fig)
 
 
-# ---------------------------------------------------------------------------------------------------------
-# the two tiers: jcbb_reference (readable recursion) and jcbb (compiled) return the same association
-# ---------------------------------------------------------------------------------------------------------
-def assert_same_association(ref, fast):
-    assert np.array_equal(ref.idx, fast.idx)
-    assert ref.n_pairings == fast.n_pairings and ref.jointly_compatible == fast.jointly_compatible
-    assert ref.d2 == pytest.approx(fast.d2, rel=1e-9, abs=1e-12)
-    assert ref.stats["level_order"].tolist() == fast.stats["level_order"].tolist()
-    assert ref.stats["nodes"] >= fast.stats["nodes"]                       # jcbb's bound is tighter
-
-
-@settings(max_examples=300, deadline=None, derandomize=True)
-@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 6), m_clutter=st.integers(0, 3),
-       n_sigma=st.sampled_from([1.5, 2.0, 3.0]), d=st.sampled_from([1, 2, 2, 3]))
-def test_reference_equals_fast_jcbb_on_random_scenes(seed, n, m_clutter, n_sigma, d):
-    density, Y = random_case(seed, n, m_clutter, n_sigma, d=d)
-    assert_same_association(jcbb_reference(density, Y, n_sigma=n_sigma), jcbb(density, Y, n_sigma=n_sigma))
-
-
-@pytest.mark.parametrize("seed", range(25))
-def test_reference_equals_fast_jcbb_on_range_bearing_scenes(seed):
-    sc = range_bearing_scenario(seed=(7, seed), n_landmarks=40, n_visible=8, n_clutter=3)
-    assert_same_association(jcbb_reference(sc.density, sc.Y), jcbb(sc.density, sc.Y))
-
-
-def test_reference_on_hand_made_cases():
-    density = shifted_row()
-    Y = (density.mean.reshape(-1, 2) + [0.6, 0.0]).T
-    res = jcbb_reference(density, Y)
-    assert np.array_equal(res.idx, np.arange(4)) and res.algorithm == "jcbb_reference"
-    assert res.d2 == pytest.approx(joint_sq_mahalanobis(prepare(density, Y), res.idx), rel=1e-12)
-    assert res.stats["jc_evaluations"] > 0 and not res.budget_exhausted
-    empty = jcbb_reference(density, np.zeros((2, 0)))
-    assert empty.n_pairings == 0 and empty.stats["nodes"] == 1
-    far = jcbb_reference(density, np.full((2, 3), 1e4))
-    assert far.n_pairings == 0 and far.stats["levels"] == 0
-
-
-def test_reference_budget_and_bad_input():
-    sc = range_bearing_scenario(seed=3, n_landmarks=40, n_visible=8, n_clutter=3)
-    full = jcbb_reference(sc.density, sc.Y)
-    cut = jcbb_reference(sc.density, sc.Y, max_nodes=3)
-    assert cut.budget_exhausted and cut.stats["nodes"] == 3 and cut.n_pairings <= full.n_pairings
-    assert not jcbb_reference(sc.density, sc.Y, max_nodes=full.stats["nodes"]).budget_exhausted
-    with pytest.raises(ValueError, match="max_nodes"):
-        jcbb_reference(sc.density, sc.Y, max_nodes=0)
-    with pytest.raises(ValueError, match="density must be"):
-        jcbb_reference(np.zeros(4), np.zeros((2, 1)))
-    with pytest.raises(ValueError, match="n_sigma"):
-        jcbb_reference(sc.density, sc.Y, n_sigma=-1.0)
-
-
 def test_trace_uses_only_the_trace_codes():
     sc = range_bearing_scenario(seed=2, n_landmarks=40, n_visible=8, n_clutter=3)
     tr = jcbb(sc.density, sc.Y, trace=True).stats["trace"]
@@ -278,19 +234,15 @@ def test_trace_uses_only_the_trace_codes():
     assert np.all(tr.obs[tr.status == TRACE_JC_FAIL] >= 0)                # JC failures are pairings
 
 
-def test_the_compiled_tree_arrays_follow_level_order():
-    """``_tree_arrays`` (the compiled search's levels and candidate lists) against ``level_order`` and the IC matrix
-    of the readable tier, on random distance matrices with many ties."""
-    from helpers.association.jcbb import _tree_arrays
-    rng = np.random.default_rng(12)
-    for _ in range(200):
-        n, m = int(rng.integers(0, 8)), int(rng.integers(0, 8))
-        d2 = rng.integers(0, 6, size=(n, m)).astype(float)
-        levels, cand_ptr, cand_obs, last_level = _tree_arrays(d2, 2.5)
-        compatible = d2 <= 2.5
-        assert levels.tolist() == level_order(compatible).tolist()
-        for t, k in enumerate(levels):
-            assert cand_obs[cand_ptr[t]:cand_ptr[t + 1]].tolist() == np.flatnonzero(compatible[k]).tolist()
-        for i in range(m):
-            on = [t for t, k in enumerate(levels) if compatible[k, i]]
-            assert last_level[i] == (on[-1] if on else -1)
+@pytest.mark.parametrize("seed", range(5))
+def test_conditioning_on_a_pairing_is_the_gaussian_conditional(seed):
+    """The incremental update (mean + Gᵀw, cov − GᵀG) against the conditional of the Gaussian, from its
+    definition: the later levels given that level t's landmark is observed at y."""
+    d, T, t = 2, 5, 1
+    density, _ = random_case(seed, T, 0, 3.0, d=d)
+    y = np.random.default_rng(seed).normal(size=d)
+    mean, cov = condition_on_pairing(density.mean.reshape(T, d), density.cov, t, y)
+    later = np.arange(d * (t + 1), d * T)
+    cond = density.conditional(later, np.arange(d * t, d * t + d), y)
+    np.testing.assert_allclose(mean.ravel()[later], cond.mean, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(cov[np.ix_(later, later)], cond.cov, rtol=1e-9, atol=1e-12)

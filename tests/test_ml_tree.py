@@ -1,10 +1,19 @@
 """ML interpretation tree: best-first search equals exhaustive enumeration and the Hungarian optimum."""
+import itertools
+
 import numpy as np
 import pytest
 
 from helpers.association.maximum_likelihood import maximum_likelihood
-from helpers.association.ml_tree import (assignment_ml, exhaustive_ml, greedy_descent, hypothesis_cost,
-                                         independent_ml, ml_costs, ml_tree_search, tree_size)
+from helpers.association.ml_tree import (
+    assignment_ml,
+    greedy_descent,
+    hypothesis_cost,
+    independent_ml,
+    ml_costs,
+    ml_tree_search,
+    tree_size,
+)
 from helpers.association.scenarios import range_bearing_scenario
 from helpers.gaussian import Gaussian
 
@@ -12,6 +21,19 @@ from helpers.gaussian import Gaussian
 def independent(mu, sigmas):
     mu = np.asarray(mu, float)
     return Gaussian(mu.ravel(), np.diag(np.repeat(np.asarray(sigmas, float), 2)))
+
+
+def exhaustive_ml(density, Y, alpha):
+    """(labels, cost) of the one-to-one optimum by enumerating every leaf of the tree (small problems only)."""
+    _, ell, new = ml_costs(density, Y, alpha)
+    K, N = ell.shape
+    assert tree_size(N, K)[0] <= 200_000
+    best, best_cost = None, np.inf
+    for labels in itertools.product(range(-1, N), repeat=K):
+        paired = [k for k in labels if k >= 0]
+        if len(paired) == len(set(paired)) and hypothesis_cost(ell, new, list(labels)) < best_cost:
+            best, best_cost = labels, hypothesis_cost(ell, new, list(labels))
+    return np.asarray(best, dtype=np.intp), float(best_cost)
 
 
 def test_tree_size():
@@ -77,6 +99,4 @@ def test_empty_and_bad_inputs():
         ml_tree_search(density, Y, 0.0)
     with pytest.raises(ValueError, match="max_nodes"):
         ml_tree_search(density, Y, 0.1, max_nodes=0)
-    with pytest.raises(ValueError, match="max_leaves"):
-        exhaustive_ml(independent(np.zeros((20, 2)), np.ones(20)), np.zeros((2, 6)), 0.1)
     assert independent_ml(density, Y, 1e6).tolist() == [-1]           # α beats every landmark: "new"

@@ -2,14 +2,20 @@
 import numpy as np
 import pytest
 
-from helpers.association.nn_timing import (loglog_slope, nn_distance_table, per_observation_nn, random_nn_problem,
-                                           time_nn)
+from helpers.association.nn_timing import (
+    inverse_2x2,
+    loglog_slope,
+    pair_distances,
+    per_observation_nn,
+    random_nn_problem,
+    time_nn,
+)
 
 
 def test_distances_and_labels_match_the_dense_formula():
     rng = np.random.default_rng(1)
     mu, S, Y = random_nn_problem(rng, 37, 23)
-    d2 = nn_distance_table(mu, S, Y)
+    d2 = pair_distances(inverse_2x2(S), mu, Y).T
     ref = np.array([[nu @ np.linalg.solve(S[j], nu) for nu in (Y.T - mu[j])] for j in range(37)])
     np.testing.assert_allclose(d2, ref, rtol=1e-10)
     labels = per_observation_nn(mu, S, Y)
@@ -29,13 +35,13 @@ def test_bad_inputs():
     rng = np.random.default_rng(0)
     mu, S, Y = random_nn_problem(rng, 3, 2)
     with pytest.raises(ValueError, match="mu"):
-        nn_distance_table(mu[:, :1], S, Y)
+        per_observation_nn(mu[:, :1], S, Y)
     with pytest.raises(ValueError, match="S must"):
-        nn_distance_table(mu, S[:2], Y)
+        per_observation_nn(mu, S[:2], Y)
     with pytest.raises(ValueError, match="Y must"):
-        nn_distance_table(mu, S, Y[:1])
+        per_observation_nn(mu, S, Y[:1])
     with pytest.raises(ValueError, match="positive definite"):
-        nn_distance_table(mu, -S, Y)
+        per_observation_nn(mu, -S, Y)
     with pytest.raises(ValueError, match="gate"):
         per_observation_nn(mu, S, Y, gate=0.0)
     with pytest.raises(ValueError, match="block_pairs"):

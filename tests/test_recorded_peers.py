@@ -1,5 +1,5 @@
 """The recorded peer results (data/peer_results.json, data/peer_victoria_park.npz): those notebook 09 shows, and
-GTSAM's LM on every shipped dataset (the "convergence" part, the references of tests/test_graph_convergence.py).
+GTSAM's LM on every shipped dataset (the "convergence" part, the references of tests/test_fast_graph_convergence.py).
 
 Without the peers: the recording is complete, names the pinned peer versions, and the workbook's own covariances at
 the recorded Victoria Park state equal GTSAM's recorded ones. With the peers installed (environment-peers.txt):

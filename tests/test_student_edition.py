@@ -267,7 +267,7 @@ def test_the_real_registry_builds_a_clean_student_edition(real_edition):
     assert "evaluate_reference" not in text      # one kinematics model: the student's evaluate is what runs
 
 
-# ---------------------------------------------------------------------------------------------- fast paths
+# ------------------------------------------------------------------------- rewrites and the student's code
 def _body_of(text):
     """The AST dump of a rewrite body as the builder writes it (indented into a function: multi-line strings in
     it gain the indentation)."""
@@ -279,8 +279,6 @@ def _body_of(text):
 def test_every_fast_path_is_the_rewrite_in_the_student_edition(real_edition):
     reg = student.load_registry()
     rewrites = reg["edition"]["rewrite"]
-    assert {r["target"] for r in rewrites} >= {"helpers.association.jcbb:jcbb", "helpers.association.snn:snn",
-                                               "helpers.association.compatibility:individual_compatibility_matrix"}
     for entry in rewrites:
         module, qualname = student.split_target(entry["target"])
         got = student.body_dump(student.module_path(real_edition, module), qualname)
@@ -288,10 +286,6 @@ def test_every_fast_path_is_the_rewrite_in_the_student_edition(real_edition):
         assert got != student.body_dump(student.module_path(ROOT, module), qualname), entry["target"]
     for rel in reg["edition"]["remove"]:
         assert not (real_edition / rel).exists(), rel
-    assert not (real_edition / "helpers" / "association" / "jcbb_kernel.py").exists()
-    for path in (real_edition / "helpers").rglob("*.py"):     # nothing imports the removed compiled search
-        assert "jcbb_kernel" not in "".join(l for l in path.read_text(encoding="utf-8").splitlines(True)
-                                            if l.lstrip().startswith(("import", "from"))), path
     for entry in reg["edition"].get("kept", []):
         assert entry["exercise"] in {ex["name"] for ex in reg["exercise"]} and entry["why"], entry["target"]
 
@@ -299,8 +293,6 @@ def test_every_fast_path_is_the_rewrite_in_the_student_edition(real_edition):
 @pytest.mark.cpu_independent  # the builder's text and the stubs' exceptions: no float reaches the result
 def test_no_line_of_a_fast_path_remains_in_the_student_edition(real_edition):
     reg = student.load_registry()
-    leaks = student.fast_path_lines(ROOT, reg)
-    assert any("jcbb_search(" in line for line in leaks)            # the compiled search's call is one of them
     assert student.self_check(real_edition, ROOT, reg) == []
 
 
@@ -316,14 +308,13 @@ def _run_in(tree, code):
 STOPS = """
     import json
     import numpy as np
-    from helpers.association.compatibility import individual_compatibility_matrix, lab_test_fixture
+    from helpers.association.compatibility import lab_test_fixture
     from helpers.association.jcbb import jcbb
     from helpers.association.scenarios import range_bearing_scenario
     from helpers.association.snn import snn
     from helpers.exercises import ExerciseNotImplemented
     fx, sc = lab_test_fixture(), range_bearing_scenario(seed=3, n_landmarks=40, n_visible=8, n_clutter=3)
     calls = {"jcbb": lambda: jcbb(sc.density, sc.Y), "jcbb_trace": lambda: jcbb(sc.density, sc.Y, trace=True),
-             "matrix": lambda: individual_compatibility_matrix(fx["Y13"], fx["density_3"]),
              "snn": lambda: snn(fx["density_3"], fx["Y13"], fx["sU"])}
     out = {}
     for name, call in calls.items():
@@ -344,24 +335,19 @@ STOPS = """
 def test_fast_paths_stop_at_the_exercise_in_a_fresh_student_edition(real_edition):
     out = _run_in(real_edition, STOPS)
     assert out["jcbb"] == out["jcbb_trace"] == "l09_jcbb"
-    assert out["matrix"] == out["snn"] == "lab8_2a_individual_compatibility"
+    assert out["snn"] == "lab8_2c_joint_compatibility"
     assert out["bad_input"].startswith("max_nodes")                # checked before the student's code runs
 
 
 RUNS = """
     import json
     import numpy as np
-    from helpers.association.compatibility import individual_compatibility_matrix, lab_test_fixture
+    from helpers.association.compatibility import lab_test_fixture
     from helpers.association.jcbb import TRACE_BEST, TRACE_EXPANDED, jcbb
     from helpers.association.scenarios import range_bearing_scenario
     from helpers.association.snn import snn
     from helpers.exercises import ExerciseNotImplemented
     fx, sc = lab_test_fixture(), range_bearing_scenario(seed=3, n_landmarks=40, n_visible=8, n_clutter=3)
-
-
-    def matrix():
-        d2, ok = individual_compatibility_matrix(fx["Y13"], fx["density_3"])
-        return {"d2": d2.tolist(), "ok": ok.tolist()}
 
 
     def surprisal_nn():
@@ -380,7 +366,7 @@ RUNS = """
 
 
     out = {}
-    for name, call in (("matrix", matrix), ("snn", surprisal_nn), ("jcbb", search)):
+    for name, call in (("snn", surprisal_nn), ("jcbb", search)):
         try:
             out[name] = call()
         except ExerciseNotImplemented as err:
@@ -389,26 +375,18 @@ RUNS = """
 """
 
 
-def test_copied_solutions_run_in_the_fast_paths(real_edition, tmp_path):
+def test_copied_solutions_run_in_the_association_algorithms(real_edition, tmp_path):
     """The "runs on the student's code" property: with the answer key's body of an exercise copied into the
-    student tree, the fast paths built on it give the answer key's results, and only those."""
-    from helpers.association.compatibility import individual_compatibility_matrix, lab_test_fixture
+    student tree, the algorithms built on it give the answer key's results, and only those."""
+    from helpers.association.compatibility import lab_test_fixture
     from helpers.association.jcbb import jcbb
     from helpers.association.scenarios import range_bearing_scenario
     from helpers.association.snn import snn
-    from helpers.gaussian import chi2inv, confidence_level
 
     fx, sc = lab_test_fixture(), range_bearing_scenario(seed=3, n_landmarks=40, n_visible=8, n_clutter=3)
-    d2, ok = individual_compatibility_matrix(fx["Y13"], fx["density_3"])
-    # the student tree gates each pair through its own path (the Gaussian's marginal): equal verdicts need every
-    # d² far from the gate, not within round-off of it (closest: 12.022 against 11.829, 1.6 %)
-    gate = chi2inv(confidence_level(3.0), 2)
-    assert abs(d2 - gate).min() > 1e-3 * gate
     tree = tmp_path / "student"
     shutil.copytree(real_edition, tree)
-    student.copy_solution(tree, "lab8_2a_individual_compatibility")
     out = _run_in(tree, RUNS)
-    assert out["matrix"] == {"d2": d2.tolist(), "ok": ok.tolist()}     # the student's gate, the answer key's result
     assert out["snn"] == "lab8_2c_joint_compatibility" and out["jcbb"] == "l09_jcbb"
     for name in ("lab8_2c_joint_compatibility", "l09_jcbb"):
         student.copy_solution(tree, name)
@@ -420,9 +398,8 @@ def test_copied_solutions_run_in_the_fast_paths(real_edition, tmp_path):
     assert out["snn"][0] == idx.tolist() and out["snn"][1] == pytest.approx(s, rel=1e-12)
     assert out["snn"][2] == far.tolist() == [-1, -1, -1] and out["snn"][3] == pytest.approx(s_far, rel=1e-12)
     search = out["jcbb"]
-    # a clear optimum: the second-best hypothesis with as many pairings has a 75 % larger D², and every joint gate
-    # decision of the tree is ≥ 0.15 % from its χ² bound, so the recursion and the compiled search agree
     assert search["idx"] == jcbb(sc.density, sc.Y).idx.tolist() and search["algorithm"] == "jcbb"
+    assert search["nodes"] == jcbb(sc.density, sc.Y).stats["nodes"]
     assert search["expanded"] == search["nodes"] and search["parents_first"] and search["root"] == [-1, -1]
 
 

@@ -8,5 +8,8 @@ notebooks (22, 23) and ``benchmarks/`` do. It builds on the course modules:
 - ``hidden_ids``: DriveBot with the landmark ids hidden (``run_hidden_ids``, ``association_report``), and
   ``hidden_ids_support`` for notebook 22;
 - ``incremental`` (with ``chain_factor`` and ``chain_kernel``): optimising after every addition with a factor kept
-  between updates (iSAM2's relinearisation rule); ``drivebot_variants`` runs DriveBot with it.
+  between updates (iSAM2's relinearisation rule);
+- ``fast_graph``: ``FastOptimizer``, the course's graph on a faster engine with GTSAM's LM schedule;
+  ``drivebot_variants`` runs DriveBot with it (``run_fast``) and with the incremental smoother (``run_incremental``);
+- ``jcbb_fast`` (with ``jcbb_kernel``): JCBB compiled with numba, for the front-end and ``benchmarks/jcbb.py``.
 """

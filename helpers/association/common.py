@@ -25,15 +25,13 @@ from __future__ import annotations
 import numbers
 from dataclasses import dataclass, field, replace
 
-import numba
 import numpy as np
 
-from .compatibility import individual_sq_distances
 from ..gaussian import Gaussian, chi2inv, confidence_level
-from ..validation import float_array, integer
+from ..validation import check_symmetric, float_array
 
 __all__ = ["Association", "AssociationProblem", "prepare", "problem_from_cov", "joint_sq_mahalanobis",
-           "empty_association", "check_hypothesis"]
+           "empty_association", "check_hypothesis", "finish", "greedy_one_to_one"]
 
 
 @dataclass(frozen=True)
@@ -90,17 +88,14 @@ class Association:
 class AssociationProblem:
     """Validated inputs plus the per-landmark quantities every algorithm needs.
 
-    mu (n, d) predicted means; P (d·n, d·n) joint covariance; Y (d, m); blocks (n, d, d) the marginal
-    covariances P_kk; ic_d2 (n, m) individual squared Mahalanobis distances d²_ki = ν_kiᵀ P_kk⁻¹ ν_ki;
-    logdet (n,) log det(2π P_kk); n_sigma and the IC threshold χ²_d(c). For d = 2 the individual distances
-    come from ``compatibility.individual_sq_distances`` (the lab's distances); other d use the same
-    formula with batched Cholesky factors.
+    mu (n, d) predicted means; P (d·n, d·n) joint covariance; Y (d, m); ic_d2 (n, m) individual squared
+    Mahalanobis distances d²_ki = ν_kiᵀ P_kk⁻¹ ν_ki; logdet (n,) log det(2π P_kk); n_sigma and the IC
+    threshold χ²_d(c).
     """
 
     mu: np.ndarray
     P: np.ndarray
     Y: np.ndarray
-    blocks: np.ndarray
     ic_d2: np.ndarray
     logdet: np.ndarray
     n_sigma: float
@@ -118,7 +113,7 @@ class AssociationProblem:
     def m(self) -> int:
         return int(self.Y.shape[1])
 
-    def subset(self, landmarks) -> "AssociationProblem":
+    def subset(self, landmarks) -> AssociationProblem:
         """The problem of the landmarks ``landmarks`` (ascending or not, each at most once) with the same
         observations: every number is taken from this problem, none recomputed, so a search on the subset sees
         exactly the distances of the full problem (the front-end re-runs an algorithm without one candidate)."""
@@ -128,7 +123,7 @@ class AssociationProblem:
             raise ValueError(f"landmarks must be distinct landmark indices in [0, {self.n}), got {rows.tolist()}")
         d = self.d
         r = (d * rows.astype(np.int64)[:, None] + np.arange(d)).ravel()
-        return AssociationProblem(mu=self.mu[rows], P=self.P[np.ix_(r, r)], Y=self.Y, blocks=self.blocks[rows],
+        return AssociationProblem(mu=self.mu[rows], P=self.P[np.ix_(r, r)], Y=self.Y,
                                   ic_d2=self.ic_d2[rows], logdet=self.logdet[rows], n_sigma=self.n_sigma,
                                   ic_threshold=self.ic_threshold)
 
@@ -137,11 +132,6 @@ class AssociationProblem:
         if isinstance(n_pairings, (int, np.integer)):
             return chi2inv(confidence_level(self.n_sigma), self.d * int(n_pairings))     # cached scalar
         return chi2inv(confidence_level(self.n_sigma), self.d * np.asarray(n_pairings))
-
-
-def _check_int(value, name, minimum=0, allow_none=False):
-    """``validation.integer`` with the association modules' default minimum 0 (the name jcbb imports)."""
-    return integer(value, name, minimum=minimum, allow_none=allow_none)
 
 
 def _observations(Y):
@@ -185,156 +175,60 @@ def prepare(density, Y, n_sigma: float = 3.0) -> AssociationProblem:
     if not isinstance(density, Gaussian):
         raise ValueError(f"density must be a helpers.gaussian.Gaussian, got {type(density).__name__}")
     Y = _observations(Y)
-    d, m = Y.shape
+    d = Y.shape[0]
     if density.size % d:
         raise ValueError(f"density has size {density.size}, which is not a multiple of the observation "
                          f"dimension d = Y.shape[0] = {d}")
-    c = confidence_level(n_sigma)  # validates n_sigma
-    n = density.size // d
-    mu = density.mean.reshape(n, d)
-    P = density.cov
-    P = 0.5 * (P + P.T)
-    blocks = P.reshape(n, d, n, d)[np.arange(n), :, np.arange(n), :]   # (n, d, d) diagonal blocks P_kk
-    try:
-        Lb = np.linalg.cholesky(blocks)
-    except np.linalg.LinAlgError:
-        raise ValueError("density: a landmark's predicted covariance block is not positive definite "
-                         "(add measurement noise to the density)") from None
-    logdet = 2.0 * np.sum(np.log(np.diagonal(Lb, axis1=1, axis2=2)), axis=1) + d * np.log(2.0 * np.pi)
-    if m and d == 2:
-        # the lab's vectorised individual distances (compatibility module): d2 (m, n) from the 2×2 marginals
-        ic_d2 = np.ascontiguousarray(individual_sq_distances(Y, density).T)
-    else:
-        ic_d2 = _individual_d2(Lb, mu, Y)
-    return AssociationProblem(mu=mu, P=P, Y=Y, blocks=blocks, ic_d2=ic_d2, logdet=logdet,
-                              n_sigma=float(n_sigma), ic_threshold=float(chi2inv(c, d)))
-
-
-def _individual_d2(Lb, mu, Y):
-    """(n, m) d²_ki = ‖L_k⁻¹ ν_ki‖², ν_ki = y_i − μ_k, from the Cholesky factors L_k (n, d, d) of the blocks."""
-    n, d = mu.shape
-    if Y.shape[1] == 0:
-        return np.zeros((n, 0))
-    nu = Y.T[None, :, :] - mu[:, None, :]                              # (n, m, d) innovations ν_ki
-    if d == 2:                                                         # L_k = [[a, 0], [b, c]]: forward substitution
-        w1 = nu[..., 0] / Lb[:, 0, 0, None]
-        w2 = (nu[..., 1] - Lb[:, 1, 0, None] * w1) / Lb[:, 1, 1, None]
-        return w1 * w1 + w2 * w2
-    w = np.einsum("kab,kmb->kma", np.linalg.inv(Lb), nu)               # w = L_k⁻¹ ν_ki
-    return np.einsum("kma,kma->km", w, w)
+    return _problem(density.mean.reshape(-1, d), density.cov, Y, n_sigma,
+                    "density: a landmark's predicted covariance block is not positive definite "
+                    "(add measurement noise to the density)")
 
 
 def problem_from_cov(mu, P, Y, n_sigma: float = 3.0) -> AssociationProblem:
     """The problem of predicted observations ``mu`` (n, d) with joint covariance ``P`` (d·n, d·n, measurement
     noise included, symmetric) and observations ``Y`` (d, m), for a caller that holds the covariance rather
-    than a Gaussian (the online front-end builds one per scan). The same quantities as :func:`prepare`, from
-    the Cholesky factors L_k of the diagonal blocks: d²_ki = ‖L_k⁻¹ ν_ki‖² by forward substitution, log det
-    from the diagonal of L_k (equal to the square-root path's to round-off). The numbers come from one compiled
-    pass (``_problem_numbers``: checks, symmetrisation, the blocks' Cholesky factors and the forward
-    substitutions of ``_individual_d2``). Pass the result as ``density`` to any algorithm (with Y None)
-    except ``surprisal_nn``, which needs the lab's Gaussian bundle density.
+    than a Gaussian (the online front-end builds one per scan): the numbers of :func:`prepare`. Pass it as
+    ``density`` to any algorithm (with Y None) except ``surprisal_nn``, which needs the lab's Gaussian.
 
     ValueError naming the argument: mu not a finite 2-D array, Y not finite (d, m) with mu's d, P not finite
     of shape (d·n, d·n) or not symmetric, a diagonal block of P not positive definite, n_sigma not positive.
-    P must be positive definite as a whole, but only its diagonal blocks are checked here (a full check would
-    cost a factorisation of P per scan). Where a joint block is factored from scratch (``jcbb_reference``, and
-    the joint D² that the other algorithms report for their hypothesis), a block without a Cholesky factor
-    raises ValueError; the compiled ``jcbb`` treats a landmark whose conditional covariance is not positive
-    definite as incompatible.
+    Only the diagonal blocks of P are checked for positive definiteness; the joint D² an algorithm reports
+    raises ValueError when its block of P has no Cholesky factor.
     """
-    Y = float_array(Y, "Y")
-    if Y.ndim != 2 or Y.shape[0] == 0:
-        _observations(Y)                             # raises the message for the shape
+    Y = _observations(Y)
     d = Y.shape[0]
     mu = float_array(mu, "mu")
-    if mu.ndim != 2 or mu.shape[1] != d:
+    if mu.ndim != 2 or mu.shape[1] != d or not np.all(np.isfinite(mu)):
         raise ValueError(f"mu must be a finite (n, {d}) array (one predicted observation per row, d = Y.shape[0]),"
                          f" got shape {mu.shape}")
     n = mu.shape[0]
     P = float_array(P, "P")
-    if P.shape != (d * n, d * n):
+    if P.shape != (d * n, d * n) or not np.all(np.isfinite(P)):
         raise ValueError(f"P must be a finite ({d * n}, {d * n}) covariance, got shape {P.shape}")
+    check_symmetric(P, "P")
+    return _problem(mu, P, Y, n_sigma, "P: a landmark's covariance block is not positive definite")
+
+
+def _problem(mu, P, Y, n_sigma, not_positive_definite) -> AssociationProblem:
+    """The per-landmark numbers, from the Cholesky factors L_k of the diagonal blocks P_kk = L_k L_kᵀ:
+    d²_ki = ‖L_k⁻¹ ν_ki‖² with ν_ki = y_i − μ_k (forward substitution, all pairs at once) and
+    log det(2π P_kk) = 2 Σ_a log (L_k)_aa + d log 2π."""
     c = confidence_level(n_sigma)  # validates n_sigma
-    mu, P, Y = np.ascontiguousarray(mu), np.ascontiguousarray(P), np.ascontiguousarray(Y)
-    status, Ps, blocks, ic_d2, logdet = _problem_numbers(mu, P, Y)
-    if status:
-        if status == _BAD_Y:
-            _observations(Y)                         # raises the message naming the bad columns
-        raise ValueError({_BAD_MU: f"mu must be a finite (n, {d}) array (one predicted observation per row, d = "
-                                   f"Y.shape[0]), got non-finite entries",
-                          _BAD_P: f"P must be a finite ({d * n}, {d * n}) covariance, got non-finite entries",
-                          _ASYMMETRIC: "P must be symmetric",
-                          _NOT_PD: "P: a landmark's covariance block is not positive definite"}[status])
-    return AssociationProblem(mu=mu, P=Ps, Y=Y, blocks=blocks, ic_d2=ic_d2, logdet=logdet,
-                              n_sigma=float(n_sigma), ic_threshold=float(chi2inv(c, d)))
-
-
-_BAD_Y, _BAD_MU, _BAD_P, _ASYMMETRIC, _NOT_PD = 1, 2, 3, 4, 5
-
-
-@numba.njit(cache=True)
-def _problem_numbers(mu, P, Y):
-    """(status, ½(P + Pᵀ), blocks (n, d, d), d² (n, m), log det(2π P_kk) (n,)) for ``problem_from_cov``; status
-    0, or the first failed check: Y, mu, P not finite, P not symmetric (``validation.check_symmetric``'s test),
-    a block not positive definite. Cholesky L_k of each block, then for every observation the forward
-    substitution w = L_k⁻¹ ν_ki and d² = ‖w‖² (the operations of ``_individual_d2``)."""
     n, d = mu.shape
-    m = Y.shape[1]
-    N = P.shape[0]
-    Ps = np.empty((N, N))
-    blocks = np.zeros((n, d, d))
-    ic_d2 = np.zeros((n, m))
-    logdet = np.zeros(n)
-    if not np.all(np.isfinite(Y)):
-        return _BAD_Y, Ps, blocks, ic_d2, logdet
-    if not np.all(np.isfinite(mu)):
-        return _BAD_MU, Ps, blocks, ic_d2, logdet
-    big = 1.0
-    for i in range(N):
-        for j in range(N):
-            a = P[i, j]
-            if not np.isfinite(a):
-                return _BAD_P, Ps, blocks, ic_d2, logdet
-            big = max(big, abs(a))
-    for i in range(N):
-        for j in range(N):
-            if not abs(P[i, j] - P[j, i]) <= 1e-12 * big + 1e-10 * abs(P[j, i]):
-                return _ASYMMETRIC, Ps, blocks, ic_d2, logdet
-            Ps[i, j] = 0.5 * (P[i, j] + P[j, i])
-    L = np.zeros((d, d))
-    w = np.zeros(d)
-    log2pi = np.log(2.0 * np.pi)
-    for k in range(n):
-        r = d * k
-        for a in range(d):
-            for b in range(d):
-                blocks[k, a, b] = Ps[r + a, r + b]
-        for a in range(d):                                  # Cholesky, column by column
-            s = blocks[k, a, a]
-            for q in range(a):
-                s -= L[a, q] * L[a, q]
-            if not s > 0.0:
-                return _NOT_PD, Ps, blocks, ic_d2, logdet
-            L[a, a] = np.sqrt(s)
-            for b in range(a + 1, d):
-                s = blocks[k, b, a]
-                for q in range(a):
-                    s -= L[b, q] * L[a, q]
-                L[b, a] = s / L[a, a]
-        acc = 0.0
-        for a in range(d):
-            acc += np.log(L[a, a])
-        logdet[k] = 2.0 * acc + d * log2pi
-        for i in range(m):
-            s2 = 0.0
-            for a in range(d):
-                s = Y[a, i] - mu[k, a]
-                for q in range(a):
-                    s -= L[a, q] * w[q]
-                w[a] = s / L[a, a]
-                s2 += w[a] * w[a]
-            ic_d2[k, i] = s2
-    return 0, Ps, blocks, ic_d2, logdet
+    P = 0.5 * (P + P.T)
+    blocks = P.reshape(n, d, n, d)[np.arange(n), :, np.arange(n), :]   # (n, d, d) diagonal blocks P_kk
+    try:
+        L = np.linalg.cholesky(blocks)
+    except np.linalg.LinAlgError:
+        raise ValueError(not_positive_definite) from None
+    logdet = 2.0 * np.sum(np.log(np.diagonal(L, axis1=1, axis2=2)), axis=1) + d * np.log(2.0 * np.pi)
+    nu = Y[None, :, :] - mu[:, :, None]                                # (n, d, m) innovations ν_ki
+    w = np.empty_like(nu)
+    for a in range(d):                                                 # w = L_k⁻¹ ν_ki, row a of L_k
+        w[:, a] = (nu[:, a] - np.einsum("ku,kum->km", L[:, a, :a], w[:, :a])) / L[:, a, a, None]
+    ic_d2 = np.einsum("kam,kam->km", w, w)
+    return AssociationProblem(mu=np.ascontiguousarray(mu), P=P, Y=Y, ic_d2=ic_d2, logdet=logdet,
+                              n_sigma=float(n_sigma), ic_threshold=float(chi2inv(c, d)))
 
 
 def check_hypothesis(idx, n: int, m: int, name: str = "idx") -> np.ndarray:
@@ -403,29 +297,6 @@ def empty_association(problem: AssociationProblem, algorithm: str, stats=None) -
     return finish(problem, np.full(problem.n, -1), algorithm, stats=stats, d2=0.0)
 
 
-@numba.njit(cache=True)
-def _greedy_kernel(order, n_cols, allowed_flat, n_rows):
-    """Walk the flattened (row, col) pairs in ``order``; accept a pair when both are free and allowed."""
-    idx = np.full(n_rows, -1, dtype=np.int64)
-    col_used = np.zeros(n_cols, dtype=np.bool_)
-    n_free_rows = n_rows
-    n_free_cols = n_cols
-    for t in range(order.size):
-        if n_free_rows == 0 or n_free_cols == 0:
-            break
-        q = order[t]
-        if not allowed_flat[q]:
-            continue
-        r = q // n_cols
-        c = q % n_cols
-        if idx[r] < 0 and not col_used[c]:
-            idx[r] = c
-            col_used[c] = True
-            n_free_rows -= 1
-            n_free_cols -= 1
-    return idx
-
-
 def greedy_one_to_one(cost, allowed) -> np.ndarray:
     """Global greedy one-to-one assignment: pairs in increasing ``cost`` (ties: lower landmark, then lower
     observation index), accepted when both ends are still free and ``allowed``. cost, allowed: (n, m).
@@ -439,7 +310,11 @@ def greedy_one_to_one(cost, allowed) -> np.ndarray:
         raise ValueError(f"allowed must be a boolean array of the shape of cost {cost.shape}, got "
                          f"{allowed.dtype} {allowed.shape}")
     n, m = cost.shape
-    if n == 0 or m == 0:
-        return np.full(n, -1, dtype=np.intp)
-    order = np.argsort(cost.ravel(), kind="stable")
-    return _greedy_kernel(order.astype(np.int64), m, allowed.ravel(), n).astype(np.intp)
+    idx = np.full(n, -1, dtype=np.intp)
+    taken = np.zeros(m, dtype=bool)
+    rows, cols = np.nonzero(allowed)                           # row-major: landmark, then observation order
+    order = np.argsort(cost[rows, cols], kind="stable")
+    for k, i in zip(rows[order].tolist(), cols[order].tolist()):
+        if idx[k] < 0 and not taken[i]:
+            idx[k], taken[i] = i, True
+    return idx

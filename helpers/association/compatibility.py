@@ -21,20 +21,12 @@ import json
 
 import numpy as np
 
+from ..gaussian import Gaussian, confidence_level
 from ..paths import data_dir
-from ..gaussian import Gaussian, chi2inv, confidence_level
 from ..validation import feature_columns, finite_number, float_array, integer
 
-__all__ = [
-    "check_bundle_density",
-    "individual_compatibility",
-    "individual_compatibility_matrix",
-    "individual_sq_distances",
-    "landmark_marginals",
-    "joint_compatibility",
-    "uniform_surprisal",
-    "lab_test_fixture",
-]
+__all__ = ["check_bundle_density", "individual_compatibility", "joint_compatibility", "uniform_surprisal",
+           "lab_test_fixture"]
 
 
 def check_bundle_density(density, allow_empty: bool = True) -> int:
@@ -55,44 +47,6 @@ def individual_compatibility(i, j, Y, density: Gaussian, n_sigma: float = 3.0) -
     i = integer(i, "i", minimum=0, below=Y.shape[1])
     j = integer(j, "j", minimum=0, below=n)
     return density.marginal([2 * j, 2 * j + 1]).is_within_confidence_region(Y[:, i], n_sigma)
-
-
-def landmark_marginals(density: Gaussian):
-    """All n 2 × 2 landmark marginals at once: (μ (n, 2), S (n, 2, 2) upper-triangular), from one batched
-    QR of the column pairs S[:, [2j, 2j+1]] (the same factor ``density.marginal([2j, 2j+1])`` gives)."""
-    n = check_bundle_density(density)
-    S = density.sqrt_cov
-    blocks = S.reshape(S.shape[0], n, 2).transpose(1, 0, 2)  # (n, 2n, 2)
-    R = np.triu(np.linalg.qr(blocks, mode="r"))[:, :2, :2]
-    return density.mean.reshape(n, 2), R
-
-
-def individual_sq_distances(Y, density: Gaussian):
-    """Squared Mahalanobis distance d2[i, j] = w_ijᵀ w_ij (S_jᵀ w_ij = y_i − μ_j) of every (feature, landmark)
-    pair, shape (m, n): one batched QR for the n marginals, closed-form 2 × 2 triangular solves for all m·n
-    pairs. The distances only; the gate is :func:`individual_compatibility`. ``prepare`` of the L09
-    algorithms takes its 2-D distances from here."""
-    Y = feature_columns(float_array(Y, "Y"), allow_empty=False)
-    mu, S = landmark_marginals(density)
-    a, b, c = S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]
-    if np.any(a == 0) or np.any(c == 0):
-        raise ValueError("density has a landmark with a singular 2 × 2 marginal; its gate is undefined")
-    D = Y.T[:, None, :] - mu[None, :, :]  # (m, n, 2)
-    # S_jᵀ w = d with S_jᵀ = [[a, 0], [b, c]]
-    w1 = D[..., 0] / a
-    w2 = (D[..., 1] - b * w1) / c
-    return w1 * w1 + w2 * w2
-
-
-def individual_compatibility_matrix(Y, density: Gaussian, n_sigma: float = 3.0):
-    """Squared Mahalanobis distances and the individual gate for every (feature, landmark) pair.
-
-    Returns ``(d2, compatible)``, both (m, n): d2 from :func:`individual_sq_distances` and compatible[i, j] =
-    ``individual_compatibility(i, j, Y, density, n_sigma)``, the gate of eq 12 for every pair.
-    """
-    d2 = individual_sq_distances(Y, density)
-    threshold = chi2inv(confidence_level(n_sigma), 2)
-    return d2, d2 <= threshold
 
 
 def uniform_surprisal(image_size) -> float:

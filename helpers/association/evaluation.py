@@ -26,16 +26,16 @@ scene over several values (with a cache, so a setting shared by several sweeps r
 from __future__ import annotations
 
 import numbers
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
 
 import numpy as np
 from scipy.stats import norm
 
-from .common import Association, check_hypothesis, joint_sq_mahalanobis, prepare
-from .scenarios import range_bearing_scenario
 from ..timing import best_of
 from ..validation import broadcastable, float_array
+from .common import Association, check_hypothesis, joint_sq_mahalanobis, prepare
+from .scenarios import range_bearing_scenario
 
 __all__ = ["score", "score_many", "run_trials", "TrialResults", "RATES", "wilson_interval", "sweep",
            "sweep_table", "check_results", "true_hypothesis"]

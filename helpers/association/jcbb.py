@@ -1,33 +1,35 @@
-"""Joint compatibility branch and bound (JCBB, Neira & Tardós 2001), in two tiers.
+"""Joint compatibility branch and bound (JCBB; Neira & Tardós 2001, lecture L09).
 
-* :func:`jcbb_reference` — the teaching version: a recursive depth-first search in plain numpy that
-  recomputes the joint Mahalanobis distance of every hypothesis from its definition. Read this one first.
-* :func:`jcbb` — the fast version: the same search compiled with numba (``jcbb_kernel``), with the
-  incremental joint distance of lecture L09 and a tighter bound. It returns the same association (tested
-  on many random scenes) after visiting far fewer nodes, and can record the searched tree
-  (:class:`JCBBTrace`, ``TRACE_*`` codes) for drawing.
+**The interpretation tree.** One level per landmark with at least one individually compatible (IC)
+observation, d²_ki = ν_kiᵀ P_kk⁻¹ ν_ki ≤ χ²_d(c); the most constrained first: fewest IC candidates, ties →
+lower landmark index (:func:`level_order`). Landmarks without a candidate stay unpaired. The children of a
+node H (a pairings) on level t are the unused IC observations i of the level's landmark k whose enlarged
+hypothesis passes the joint gate D²_{H+(k,i)} ≤ χ²_{d(a+1)}(c), nearest first (ties → lower i), then the
+star (k unpaired). The best hypothesis has the most pairings, then the smallest D²_H; a node replaces the
+incumbent Best only when it is strictly better, so of equal hypotheses the first one met wins.
 
-Both search the same interpretation tree for the same objective:
+**The incremental joint distance** (the lecture: "this test is carried out incrementally"). Given the
+pairings of H, the predictions of the other landmarks are Gaussian with the conditional mean μ_{·|H} and
+covariance Σ_{·|H}. Pairing level t with the observation y updates them like a Kalman filter:
 
-* **Levels.** One level per landmark with at least one individually compatible (IC) observation,
-  d²_ki = ν_kiᵀ P_kk⁻¹ ν_ki ≤ χ²_d(c); landmarks without one are starred without branching. Levels are
-  visited most constrained first: fewest IC candidates, ties → lower landmark index (:func:`level_order`,
-  reported in ``stats["level_order"]``).
-* **Children** of a node H (a pairings) on level t, landmark k: the IC observations i of k not used in H
-  whose enlarged hypothesis is jointly compatible, D²_{H+(k,i)} ≤ χ²_{d(a+1)}(c), tried nearest first
-  (smallest D², ties → lower observation index); then the star branch (k unpaired). A child failing the
-  joint gate is cut with its whole subtree, so the admissible hypotheses are those whose every prefix (in
-  level order) is jointly compatible.
-* **Objective.** Most pairings, then smallest D²_H. Every node (H completed with stars) is compared with
-  the incumbent Best and replaces it only when strictly better, so of several equally good hypotheses the
-  one met first in the depth-first order is returned — by both tiers.
-* **Bound.** A node is discarded when pairings(H) + (pairings its descendants can still add) <
-  pairings(Best), or = pairings(Best) and D²_H ≥ D²_Best (D² never decreases along a branch). The bounds
-  only remove nodes that cannot beat Best, so both tiers return the exact optimum of the tree.
+    Σ_{t|H} = L Lᵀ,   w = L⁻¹ (y − μ_{t|H}),   G = L⁻¹ Σ_{t,·|H},
+    D²_{H+} = D²_H + wᵀw,   μ_{·|H+} = μ_{·|H} + Gᵀ w,   Σ_{·|H+} = Σ_{·|H} − GᵀG
 
-Gates use c = 2Φ(n_σ) − 1 and ``≤``. ``max_nodes`` caps the expanded nodes; when hit, the best hypothesis
-found so far is returned with ``budget_exhausted=True`` (the two tiers count different nodes, so their
-capped results may differ).
+(the block row that extends the Cholesky factor of C_H). So every candidate's joint distance is an
+individual distance against the conditional prediction, D²_{H+(q,o)} = D²_H + d²(o | q, H): JC is IC given H.
+D² never decreases along a branch.
+
+**The bound.** A node is cut when no descendant can beat Best: a + possible < pairings(Best), or = and
+D²_H ≥ D²_Best, where ``possible`` bounds the pairings a descendant can still add (:func:`pairings_bound`):
+at most the levels left and the unused observations that are still some level's candidate (U); a candidate
+(q, o) can be in a descendant only if D²_H + d²(o | q, H) ≤ χ²_{d(a+U)}, the widest gate a descendant
+meets; the i-th pairing added below H must pass χ²_{d(a+i)}, so at most as many levels as form a chain
+D²_H + min_o d²(o | q_i, H) ≤ χ²_{d(a+i)}; and when a + possible only ties pairings(Best), a descendant adds
+``need`` pairings on distinct levels, so its D² is at least the need-th smallest per-level minimum.
+
+The search (:meth:`_Search.visit`) is plain Python. What it computes for every hypothesis — the conditional
+predictions, the candidates' joint distances, the bound — is compiled with numba, as plain loops: notebook 08
+runs the search on thousands of scenes. Gates use c = 2Φ(n_σ) − 1 and ``≤``.
 """
 from __future__ import annotations
 
@@ -38,11 +40,15 @@ import numba
 import numpy as np
 
 from ..gaussian import chi2inv, confidence_level
-from .common import Association, _check_int, _joint_d2, empty_association, finish, prepare
-from .jcbb_kernel import TRACE_BEST, TRACE_BOUND, TRACE_EXPANDED, TRACE_JC_FAIL, jcbb_search
+from ..validation import boolean, integer
+from .common import Association, empty_association, finish, prepare
 
-__all__ = ["jcbb", "jcbb_reference", "JCBBTrace", "TRACE_EXPANDED", "TRACE_JC_FAIL", "TRACE_BOUND",
-           "TRACE_BEST", "level_order"]
+__all__ = ["jcbb", "JCBBTrace", "level_order", "TRACE_EXPANDED", "TRACE_JC_FAIL", "TRACE_BOUND", "TRACE_BEST"]
+
+TRACE_EXPANDED = 0   #: node expanded (passed the joint gate and the bound)
+TRACE_JC_FAIL = 1    #: child rejected by the joint χ² gate (its subtree is never visited)
+TRACE_BOUND = 2      #: node cut by the bound (cannot beat the incumbent)
+TRACE_BEST = 3       #: node expanded and became the new incumbent Best
 
 _TRACE_STATUS_NAMES = {TRACE_EXPANDED: "expanded", TRACE_JC_FAIL: "jc_fail", TRACE_BOUND: "bound",
                        TRACE_BEST: "best"}
@@ -69,14 +75,6 @@ class JCBBTrace:
         return _TRACE_STATUS_NAMES[int(self.status[i])]
 
 
-@functools.lru_cache(maxsize=256)
-def _joint_gates(c: float, d: int, K: int) -> np.ndarray:
-    """χ²_{d·a}(c) for a = 1 … K + 1 (read-only; the front-end asks for the same few gates every scan)."""
-    gates = chi2inv(c, d * np.arange(1, K + 2))
-    gates.setflags(write=False)
-    return gates
-
-
 def level_order(compatible) -> np.ndarray:
     """Landmarks that open a tree level, in visiting order: at least one IC candidate; fewest candidates
     first, ties → lower landmark index. ``compatible``: boolean (n, m) IC matrix."""
@@ -88,160 +86,243 @@ def level_order(compatible) -> np.ndarray:
     return lm[np.lexsort((lm, counts[lm]))]
 
 
+# --------------------------------------------------------------------------------------------------------
+# the numerics of one hypothesis (compiled: plain loops)
+# --------------------------------------------------------------------------------------------------------
 @numba.njit(cache=True)
-def _tree_arrays(ic_d2, threshold):
-    """The compiled search's tree from the individual distances: ``level_order`` of the IC matrix
-    d² ≤ ``threshold`` (levels (T,)), each level's IC observations ascending (``cand_obs[cand_ptr[t]:cand_ptr[t+1]]``)
-    and, per observation, the last level that has it as a candidate (−1: none)."""
-    n, m = ic_d2.shape
-    counts = np.zeros(n, dtype=np.int64)
-    for k in range(n):
-        for i in range(m):
-            if ic_d2[k, i] <= threshold:
-                counts[k] += 1
-    lm = np.flatnonzero(counts > 0)
-    levels = lm[np.argsort(counts[lm] * (n + 1) + lm)]          # fewest candidates first, ties → lower index
-    T = levels.size
-    cand_ptr = np.zeros(T + 1, dtype=np.int64)
-    for t in range(T):
-        cand_ptr[t + 1] = cand_ptr[t] + counts[levels[t]]
-    cand_obs = np.empty(cand_ptr[T], dtype=np.int64)
-    last_level = np.full(m, -1, dtype=np.int64)
-    q = 0
-    for t in range(T):
-        for i in range(m):
-            if ic_d2[levels[t], i] <= threshold:
-                cand_obs[q] = i
-                last_level[i] = t
-                q += 1
-    return levels.astype(np.int64), cand_ptr, cand_obs, last_level
+def _cholesky(A):
+    """Lower Cholesky factor L of a small symmetric matrix A (A = L Lᵀ) and whether A is positive definite."""
+    d = A.shape[0]
+    L = np.zeros((d, d))
+    for a in range(d):
+        for b in range(a + 1):
+            s = A[a, b]                              # L_ab = (A_ab − Σ_u L_au L_bu) / L_bb
+            for u in range(b):
+                s -= L[a, u] * L[b, u]
+            if a == b:
+                if not s > 0.0:
+                    return L, False
+                L[a, a] = np.sqrt(s)
+            else:
+                L[a, b] = s / L[b, b]
+    return L, True
 
 
-def _tree(density, Y, n_sigma):
-    """The validated problem, its IC matrix, the level order and the stats shared by both tiers."""
-    problem = prepare(density, Y, n_sigma)
-    compatible = problem.ic_d2 <= problem.ic_threshold
-    levels = level_order(compatible)
-    stats = {"nodes": 0, "jc_evaluations": 0, "levels": int(levels.size), "level_order": levels,
-             "ic_pairs": int(np.count_nonzero(compatible))}
-    return problem, compatible, levels, stats
+@numba.njit(cache=True)
+def condition_on_pairing(mean, cov, t, y):
+    """The predictions (mean (T, d), cov (T·d, T·d)) conditioned on one more pairing: level t's landmark
+    observed at y. Returns new arrays; only the levels after t are updated (the search never reads the others)."""
+    T, d = mean.shape
+    r = d * t
+    L, _ = _cholesky(cov[r:r + d, r:r + d])              # Σ_t = L Lᵀ (positive definite: t has a candidate)
+    w = np.empty(d)
+    G = np.empty((d, T * d))
+    for a in range(d):                                    # forward substitution, row a of L
+        s = y[a] - mean[t, a]                             # w = L⁻¹ (y − μ_t)
+        for u in range(a):
+            s -= L[a, u] * w[u]
+        w[a] = s / L[a, a]
+        for c in range(r + d, T * d):                     # G = L⁻¹ Σ_{t,·}
+            s = cov[r + a, c]
+            for u in range(a):
+                s -= L[a, u] * G[u, c]
+            G[a, c] = s / L[a, a]
+    new_mean = mean.copy()
+    new_cov = cov.copy()
+    for c in range(r + d, T * d):
+        for a in range(d):                                # μ ← μ + Gᵀ w
+            new_mean[c // d, c % d] += G[a, c] * w[a]
+        for e in range(r + d, c + 1):                     # Σ ← Σ − Gᵀ G  (symmetric)
+            s = 0.0
+            for a in range(d):
+                s += G[a, c] * G[a, e]
+            new_cov[c, e] -= s
+            new_cov[e, c] = new_cov[c, e]
+    return new_mean, new_cov
+
+
+@numba.njit(cache=True)
+def candidate_distances(mean, cov, D2, t, Y, ic, used):
+    """cand (T, m): D²_H + d²(o | q, H) for every IC candidate o of every level q ≥ t that is not used in H;
+    ∞ elsewhere, and for a level whose conditional covariance is not positive definite (round-off)."""
+    T, d = mean.shape
+    m = Y.shape[1]
+    cand = np.full((T, m), np.inf)
+    w = np.empty(d)
+    for q in range(t, T):
+        L, ok = _cholesky(cov[d * q:d * q + d, d * q:d * q + d])      # Σ_{q|H} = L Lᵀ
+        if not ok:
+            continue
+        for o in range(m):
+            if not ic[q, o] or used[o]:
+                continue
+            d2 = 0.0
+            for a in range(d):                                          # w = L⁻¹ (y_o − μ_{q|H})
+                s = Y[a, o] - mean[q, a]
+                for u in range(a):
+                    s -= L[a, u] * w[u]
+                w[a] = s / L[a, a]
+                d2 += w[a] * w[a]
+            cand[q, o] = D2 + d2                                        # D²_{H+(q,o)} = D²_H + ‖w‖²
+    return cand
+
+
+@numba.njit(cache=True)
+def pairings_bound(cand, t, a, D2, used, last_level, gates, best_a, best_d2):
+    """Upper bound on the pairings a descendant of the node (level t, H with a pairings and distance D2) can
+    still add (module docstring), or −1 when even a tie in pairings cannot beat D²_Best.
+    last_level[o]: the last level that has o as a candidate (−1: none); gates[j] = χ²_{d·j}(c)."""
+    T, m = cand.shape
+    if t == T:
+        return 0
+    reach = 0                                   # unused observations that are a candidate of a level ≥ t
+    for o in range(m):
+        if not used[o] and last_level[o] >= t:
+            reach += 1
+    U = min(T - t, reach)
+    if U == 0 or a + U < best_a:
+        return U
+    widest = gates[a + U]
+    n_obs = 0                                   # observations with a candidate under the widest gate
+    for o in range(m):
+        for q in range(t, T):
+            if cand[q, o] <= widest:
+                n_obs += 1
+                break
+    chain = 0                                   # levels q_1 < q_2 < … with D²_H + min d²(o | q_i, H) ≤ χ²_{d(a+i)}
+    nearest = np.full(T - t, np.inf)
+    for q in range(t, T):
+        for o in range(m):
+            nearest[q - t] = min(nearest[q - t], cand[q, o])
+        if a + chain + 1 < gates.size and nearest[q - t] <= gates[a + chain + 1]:
+            chain += 1
+    possible = min(chain, n_obs)
+    need = best_a - a
+    if a + possible == best_a and need > 0 and D2 < best_d2:
+        if np.sort(nearest)[need - 1] >= best_d2:          # every such descendant has D² ≥ D²_Best
+            return -1
+    return possible
+
+
+@numba.njit(cache=True)
+def nearest_first(d2, gate):
+    """The indices i with d2[i] ≤ gate, in ascending d2 (ties → lower i)."""
+    passing = np.flatnonzero(d2 <= gate)
+    return passing[np.argsort(d2[passing], kind="mergesort")]
 
 
 # --------------------------------------------------------------------------------------------------------
-# tier 1: the readable recursive search
+# the search
 # --------------------------------------------------------------------------------------------------------
-class _ReferenceSearch:
-    """State of one :func:`jcbb_reference` search: the hypothesis H being built and the incumbent Best."""
+@functools.lru_cache(maxsize=256)
+def _joint_gates(c: float, d: int, T: int) -> np.ndarray:
+    """gates[a] = χ²_{d·a}(c) for a = 0 … T + 1 (gates[0] = 0; read-only: one array per setting)."""
+    gates = np.concatenate([[0.0], chi2inv(c, d * np.arange(1, T + 2))])
+    gates.setflags(write=False)
+    return gates
 
-    def __init__(self, problem, candidates, levels, max_nodes):
-        self.problem, self.candidates, self.levels, self.max_nodes = problem, candidates, levels, max_nodes
-        self.gate = problem.jc_threshold(np.arange(1, len(levels) + 1))    # gate[a − 1] = χ²_{d·a}(c)
-        self.idx = np.full(problem.n, -1)              # H: idx[k] = observation paired with landmark k
-        self.used = set()                              # observations already paired in H
-        self.best_idx, self.best_pairings, self.best_d2 = self.idx.copy(), 0, np.inf
-        self.nodes = self.jc_evaluations = 0
-        self.exhausted = False
 
-    def joint_d2(self, k, i):
-        """D² of H + (k, i), from the definition f_Hᵀ C_H⁻¹ f_H (a Cholesky factorisation of C_H)."""
-        self.idx[k] = i
-        d2 = _joint_d2(self.problem, self.idx)
-        self.idx[k] = -1
-        self.jc_evaluations += 1
-        return d2
+class _Search:
+    """One JCBB search: the tree (levels and their IC candidates), the hypothesis H being built (``idx``,
+    ``used``) and the incumbent Best; ``nodes`` counts the expanded nodes, ``trace`` records the tree."""
 
-    def remaining(self, t):
-        """Pairings the levels t, t+1, … can still add: levels with an unused candidate, at most as many
-        as the distinct unused observations among their candidates."""
-        free = [set(c.tolist()) - self.used for c in self.candidates[t:]]
-        return min(sum(1 for f in free if f), len(set().union(*free)))
+    def __init__(self, problem, levels, max_nodes, trace_capacity):
+        d, T = problem.d, levels.size
+        self.levels, self.T, self.max_nodes = levels, T, max_nodes
+        self.Y = np.ascontiguousarray(problem.Y)
+        self.ic = problem.ic_d2[levels] <= problem.ic_threshold                  # (T, m) candidates per level
+        self.last_level = np.where(self.ic.any(axis=0), T - 1 - np.argmax(self.ic[::-1], axis=0), -1)  # −1: none
+        self.gates = _joint_gates(confidence_level(problem.n_sigma), d, T)
+        self.idx = np.full(problem.n, -1)               # H: idx[k] = observation paired with landmark k
+        self.used = np.zeros(problem.m, dtype=bool)     # observations paired in H
+        self.best_idx, self.best_a, self.best_d2 = self.idx.copy(), 0, np.inf
+        self.nodes, self.exhausted = 0, False
+        self.trace, self.trace_capacity, self.truncated = [], trace_capacity, False
+        rows = (d * levels[:, None] + np.arange(d)).ravel()
+        self.mean = np.ascontiguousarray(problem.mu[levels])                      # predictions given H = ∅
+        self.cov = np.ascontiguousarray(problem.P[np.ix_(rows, rows)])
 
-    def visit(self, t, a, d2):
-        """Node on level t whose hypothesis H has a pairings and joint distance d2."""
-        if self.exhausted:
+    def record(self, parent, level, obs, status, d2):
+        """Append a trace entry; returns its index (−1: not recorded)."""
+        if len(self.trace) >= self.trace_capacity:
+            self.truncated = self.trace_capacity > 0
+            return -1
+        self.trace.append([parent, level, obs, status, d2])
+        return len(self.trace) - 1
+
+    def mark(self, node, status):
+        """Set the status of a recorded node."""
+        if node >= 0:
+            self.trace[node][3] = status
+
+    def children(self, t, a, cand, node):
+        """The observations level t's landmark can take: the candidates under the joint gate χ²_{d(a+1)},
+        nearest first (ties → lower observation); the candidates over it are recorded as JC failures."""
+        gate = self.gates[a + 1]
+        if self.trace_capacity:
+            for i in np.flatnonzero((cand[t] > gate) & (cand[t] < np.inf)):
+                self.record(node, t, int(i), TRACE_JC_FAIL, float(cand[t, i]))
+        return nearest_first(cand[t], gate).tolist()
+
+    def visit(self, t, a, D2, mean, cov, cand, node):
+        """Node on level t: H has a pairings and joint distance D2; (mean, cov) are the predictions given H and
+        cand the candidates' joint distances (``candidate_distances``); ``node`` is its trace entry.
+
+            if the bound says no descendant can beat Best:  cut (return)
+            if the node budget is spent:  stop the search
+            count the node; if H beats Best (more pairings, or as many and a smaller D²):  Best ← H
+            if t = T:  return
+            for each child i of level t (``children``, nearest first):
+                condition the predictions on (t, i), mark i used, visit(t + 1, H + (landmark, i)), undo
+            visit(t + 1, H)                                       # the star: the landmark unpaired
+        """
+        possible = pairings_bound(cand, t, a, D2, self.used, self.last_level, self.gates, self.best_a, self.best_d2)
+        if a + possible < self.best_a or (a + possible == self.best_a and D2 >= self.best_d2):
+            self.mark(node, TRACE_BOUND)
             return
-        possible = self.remaining(t)
-        if a + possible < self.best_pairings or (a + possible == self.best_pairings and d2 >= self.best_d2):
-            return                                                  # bound: cannot beat Best
-        if self.max_nodes is not None and self.nodes >= self.max_nodes:
+        if self.nodes == self.max_nodes:
             self.exhausted = True
+            self.mark(node, TRACE_BOUND)
             return
         self.nodes += 1
-        if a > self.best_pairings or (a == self.best_pairings and d2 < self.best_d2):
-            self.best_idx, self.best_pairings, self.best_d2 = self.idx.copy(), a, d2      # new incumbent
-        if t == len(self.levels):
+        if a > self.best_a or (a == self.best_a and D2 < self.best_d2):
+            self.best_idx, self.best_a, self.best_d2 = self.idx.copy(), a, D2
+            self.mark(node, TRACE_BEST)
+        if t == self.T:
             return
-        k = self.levels[t]
-        children = []
-        for i in self.candidates[t]:
-            if i not in self.used:
-                d2_child = self.joint_d2(k, i)
-                if d2_child <= self.gate[a]:                        # joint gate χ²_{d(a+1)}(c)
-                    children.append((d2_child, int(i)))
-        for d2_child, i in sorted(children):                        # nearest first, ties → lower i
-            self.idx[k] = i
-            self.used.add(i)
-            self.visit(t + 1, a + 1, d2_child)
-            self.idx[k] = -1
-            self.used.discard(i)
-        self.visit(t + 1, a, d2)                                    # the star branch: k unpaired
+        landmark = self.levels[t]
+        for i in self.children(t, a, cand, node):
+            d2 = float(cand[t, i])
+            mean_i, cov_i = condition_on_pairing(mean, cov, t, self.Y[:, i])
+            self.idx[landmark], self.used[i] = i, True
+            cand_i = candidate_distances(mean_i, cov_i, d2, t + 1, self.Y, self.ic, self.used)
+            self.visit(t + 1, a + 1, d2, mean_i, cov_i, cand_i, self.record(node, t, i, TRACE_EXPANDED, d2))
+            self.idx[landmark], self.used[i] = -1, False
+            if self.exhausted:
+                return
+        self.visit(t + 1, a, D2, mean, cov, cand, self.record(node, t, -1, TRACE_EXPANDED, D2))
+
+    def run(self):
+        """Search from the root (H = ∅)."""
+        cand = candidate_distances(self.mean, self.cov, 0.0, 0, self.Y, self.ic, self.used)
+        self.visit(0, 0, 0.0, self.mean, self.cov, cand, self.record(-1, -1, -1, TRACE_EXPANDED, 0.0))
+
+    def trace_arrays(self) -> JCBBTrace:
+        rows = np.array(self.trace, dtype=float).reshape(-1, 5)
+        parent, level, obs, status = (rows[:, c].astype(np.int64) for c in range(4))
+        landmark = np.where(level >= 0, self.levels[np.maximum(level, 0)], -1)
+        return JCBBTrace(parent=parent, level=level, landmark=landmark, obs=obs, d2=rows[:, 4], status=status,
+                         truncated=self.truncated)
 
 
-def jcbb_reference(density, Y, n_sigma: float = 3.0, max_nodes: int | None = None) -> Association:
-    """JCBB written as the textbook recursion (Neira & Tardós 2001); the oracle for :func:`jcbb`.
-
-    A hypothesis H pairs a landmarks k_1 … k_a with distinct observations i_1 … i_a. Its innovation and
-    covariance stack the pairs (the density already includes the measurement noise):
-
-        f_H = [y_{i_1} − μ_{k_1}; …; y_{i_a} − μ_{k_a}],   C_H = P[rows(H), rows(H)],
-        D²_H = f_Hᵀ C_H⁻¹ f_H = ‖L⁻¹ f_H‖²   with C_H = L Lᵀ (Cholesky).
-
-    H is jointly compatible when D²_H ≤ χ²_{d·a}(c): if H is right, D²_H is χ² with d·a degrees of freedom.
-    Unlike the individual test, C_H carries the cross-covariances: a shared pose error moves all
-    predictions together, so a constellation of pairings can pass jointly where each pair looks wrong alone
-    (or fail jointly although each passes alone). Adding a pairing never decreases D².
-
-    Algorithm (depth-first over the interpretation tree; see the module docstring for the tree):
-
-        visit(t, H):                                    # level t, landmark k = levels[t]
-            if pairings(H) + remaining(t) < pairings(Best), or = and D²_H ≥ D²_Best:  return   # bound
-            if H beats Best (more pairings, or as many and smaller D²):  Best ← H
-            if t = T:  return
-            for each IC observation i of k not used in H, nearest (smallest D²_{H+(k,i)}) first:
-                if D²_{H+(k,i)} ≤ χ²_{d(a+1)}(c):  visit(t + 1, H + (k, i))
-            visit(t + 1, H)                              # star node: k unpaired
-
-    remaining(t) counts the levels t… that still have an unused candidate (capped by the number of those
-    candidates). Every D² is computed from scratch: O((d·a)³) per candidate, which is what :func:`jcbb`
-    avoids with the incremental Cholesky update.
-
-    Same inputs as :func:`jcbb` except tracing; stats: ``nodes`` (expanded nodes, root included; more than
-    ``jcbb`` needs, its bound is tighter), ``jc_evaluations`` (joint distances computed), ``levels``,
-    ``level_order`` and ``ic_pairs``.
-    """
-    max_nodes = _check_int(max_nodes, "max_nodes", minimum=1, allow_none=True)
-    problem, compatible, levels, stats = _tree(density, Y, n_sigma)
-    if problem.m == 0 or levels.size == 0:
-        stats["nodes"] = 1
-        return empty_association(problem, "jcbb_reference", stats)
-    candidates = [np.flatnonzero(compatible[k]) for k in levels]             # ascending observation index
-    search = _ReferenceSearch(problem, candidates, levels, max_nodes)
-    search.visit(0, 0, 0.0)
-    stats["nodes"], stats["jc_evaluations"] = search.nodes, search.jc_evaluations
-    return finish(problem, search.best_idx, "jcbb_reference", stats, budget_exhausted=search.exhausted,
-                  d2=0.0 if search.best_pairings == 0 else search.best_d2)
-
-
-# --------------------------------------------------------------------------------------------------------
-# tier 2: the compiled search
-# --------------------------------------------------------------------------------------------------------
 def jcbb(density, Y, n_sigma: float = 3.0, max_nodes: int | None = None, trace: bool = False,
          trace_capacity: int = 20000) -> Association:
-    """JCBB association, compiled (see the module docstring; the numerics are in ``jcbb_kernel``).
+    """JCBB association (see the module docstring).
 
     Parameters
     ----------
-    density : Gaussian of size d·n (predicted measurements of the n landmarks, full cross-covariance)
+    density : Gaussian of size d·n (predicted measurements of the n landmarks, full cross-covariance), or an
+        ``AssociationProblem`` (then Y is None or its observations)
     Y : (d, m) observations
     n_sigma : gate width; IC gate χ²_d(c) and joint gate χ²_{d·a}(c), c = 2Φ(n_σ) − 1 (``≤``)
     max_nodes : expanded-node budget (None = unlimited); when hit, the best hypothesis so far is returned
@@ -249,33 +330,21 @@ def jcbb(density, Y, n_sigma: float = 3.0, max_nodes: int | None = None, trace: 
     trace : record the searched tree in ``stats["trace"]`` (a :class:`JCBBTrace`, at most
         ``trace_capacity`` entries)
 
-    stats: ``nodes`` (expanded nodes, root included), ``jc_evaluations`` (candidate joint distances
-    computed), ``levels`` (landmarks with an IC candidate), ``level_order``, ``ic_pairs`` and ``trace``.
+    stats: ``nodes`` (expanded nodes, root included), ``levels`` (landmarks with an IC candidate),
+    ``level_order`` and, with ``trace``, ``trace``.
     """
-    max_nodes = _check_int(max_nodes, "max_nodes", minimum=1, allow_none=True)
-    if not isinstance(trace, bool):
-        raise ValueError(f"trace must be True or False, got {trace!r}")
-    trace_capacity = _check_int(trace_capacity, "trace_capacity", minimum=1)
+    max_nodes = integer(max_nodes, "max_nodes", minimum=1, allow_none=True)
+    trace = boolean(trace, "trace")
+    trace_capacity = integer(trace_capacity, "trace_capacity", minimum=1)
     problem = prepare(density, Y, n_sigma)
-    levels, cand_ptr, cols, last_level = _tree_arrays(problem.ic_d2, problem.ic_threshold)
-    stats = {"nodes": 0, "jc_evaluations": 0, "levels": int(levels.size), "level_order": levels,
-             "ic_pairs": int(cand_ptr[-1])}
-    if problem.m == 0 or levels.size == 0:
-        stats["nodes"] = 1
+    levels = level_order(problem.ic_d2 <= problem.ic_threshold)
+    stats = {"nodes": 1, "levels": int(levels.size), "level_order": levels}
+    if levels.size == 0:
         return empty_association(problem, "jcbb", stats)
-    K = min(levels.size, problem.m)
-    thresh = np.zeros(K + 2)                                     # thresh[a] = χ²_{d·a}(c)
-    thresh[1:] = _joint_gates(confidence_level(n_sigma), problem.d, K)
-    out = jcbb_search(np.ascontiguousarray(problem.mu.ravel()), np.ascontiguousarray(problem.P),
-                      np.ascontiguousarray(problem.Y), problem.d, levels, cand_ptr, cols, last_level, thresh,
-                      -1 if max_nodes is None else max_nodes, trace_capacity if trace else 0)
-    best_idx, best_k, best_d2, nodes, jc_evals, exhausted = out[:6]
-    stats["nodes"] = int(nodes)
-    stats["jc_evaluations"] = int(jc_evals)
+    search = _Search(problem, levels, max_nodes, trace_capacity if trace else 0)
+    search.run()
+    stats["nodes"] = search.nodes
     if trace:
-        parent, lev, obs, status, d2s, truncated = out[6:]
-        landmark = np.where(lev >= 0, levels[np.maximum(lev, 0)], -1)
-        stats["trace"] = JCBBTrace(parent=parent, level=lev, landmark=landmark, obs=obs, d2=d2s,
-                                   status=status, truncated=bool(truncated))
-    return finish(problem, best_idx, "jcbb", stats, budget_exhausted=bool(exhausted),
-                  d2=0.0 if best_k == 0 else best_d2, jc_gates=thresh)
+        stats["trace"] = search.trace_arrays()
+    return finish(problem, search.best_idx, "jcbb", stats, budget_exhausted=search.exhausted,
+                  d2=0.0 if search.best_a == 0 else search.best_d2)

@@ -12,18 +12,17 @@ then a blank line.
 """
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass, field
 
 import numpy as np
 
-import inspect
-
-from .compatibility import uniform_surprisal
-from .snn import snn
 from ..camera import Camera
 from ..features import Features, detect_features
 from ..state_slam import StateSLAM
 from ..validation import finite_number, float_array
+from .compatibility import uniform_surprisal
+from .snn import snn
 
 __all__ = [
     "DEMO_DETECTOR",

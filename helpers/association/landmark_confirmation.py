@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .nearest_neighbour import mahalanobis_nn
 from ..gaussian import Gaussian, confidence_level
 from ..validation import integer, positive_number, rng_seed
+from .nearest_neighbour import mahalanobis_nn
 
 __all__ = ["ConfirmationSequence", "Track", "confirmation_sequence", "confirm_landmarks"]
 

@@ -28,11 +28,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from ..validation import finite_number, float_array
 from .common import Association, finish, prepare
-from ..validation import finite_number, float_array, integer
 
-__all__ = ["MLTreeResult", "ml_costs", "ml_tree_search", "greedy_descent", "independent_ml", "exhaustive_ml",
-           "assignment_ml", "tree_size", "hypothesis_cost"]
+__all__ = ["MLTreeResult", "ml_costs", "ml_tree_search", "greedy_descent", "independent_ml", "assignment_ml",
+           "tree_size", "hypothesis_cost"]
 
 
 @dataclass(frozen=True)
@@ -89,7 +89,7 @@ def hypothesis_cost(ell, new, labels) -> float:
 
 
 def _cost(ell, new, labels) -> float:
-    """:func:`hypothesis_cost` without the checks (called for every leaf of the exhaustive search)."""
+    """:func:`hypothesis_cost` without the checks."""
     labels = np.asarray(labels)
     paired = labels >= 0
     return float(ell[np.flatnonzero(paired), labels[paired]].sum() + new * np.count_nonzero(~paired))
@@ -176,25 +176,6 @@ def independent_ml(density, Y, alpha) -> np.ndarray:
         return np.full(ell.shape[0], -1, dtype=np.intp)
     k = np.argmin(ell, axis=1)
     return np.where(ell[np.arange(ell.shape[0]), k] < new, k, -1).astype(np.intp)
-
-
-def exhaustive_ml(density, Y, alpha, max_leaves: int = 200_000) -> tuple[np.ndarray, float]:
-    """(labels, cost) of the one-to-one optimum by enumerating every leaf (small problems only:
-    ValueError when (N + 1)^K exceeds ``max_leaves``). For tests and checks."""
-    max_leaves = integer(max_leaves, "max_leaves", minimum=1)
-    problem, ell, new = ml_costs(density, Y, alpha)
-    K, N = ell.shape
-    if tree_size(N, K)[0] > max_leaves:
-        raise ValueError(f"max_leaves: the tree has (N + 1)^K = {N + 1}^{K} leaves, more than {max_leaves}")
-    best, best_cost = None, np.inf
-    for labels in itertools.product(range(-1, N), repeat=K):
-        paired = [k for k in labels if k >= 0]
-        if len(paired) != len(set(paired)):
-            continue
-        c = _cost(ell, new, labels)
-        if c < best_cost:
-            best, best_cost = labels, c
-    return np.asarray(best, dtype=np.intp), float(best_cost)
 
 
 def assignment_ml(density, Y, alpha) -> tuple[np.ndarray, float]:

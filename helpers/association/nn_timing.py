@@ -20,8 +20,7 @@ import numpy as np
 from ..timing import best_of
 from ..validation import float_array, rng_seed
 
-__all__ = ["inverse_2x2", "pair_distances", "nn_distance_table", "per_observation_nn", "random_nn_problem",
-           "time_nn", "loglog_slope"]
+__all__ = ["inverse_2x2", "pair_distances", "per_observation_nn", "random_nn_problem", "time_nn", "loglog_slope"]
 
 
 def _check(mu, S, Y):
@@ -58,13 +57,6 @@ def pair_distances(inv, mu, Y):
     dx = Y[0][:, None] - mu[:, 0][None, :]
     dy = Y[1][:, None] - mu[:, 1][None, :]
     return a * dx * dx + 2.0 * b * dx * dy + c * dy * dy
-
-
-def nn_distance_table(mu, S, Y) -> np.ndarray:
-    """d²_ji for every landmark j (rows) and observation i (columns): shape (N, K), one O(1) quadratic
-    form per pair."""
-    mu, S, Y = _check(mu, S, Y)
-    return pair_distances(inverse_2x2(S), mu, Y).T
 
 
 def per_observation_nn(mu, S, Y, gate: float | None = None, block_pairs: int = 16384) -> np.ndarray:

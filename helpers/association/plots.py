@@ -5,12 +5,12 @@ from __future__ import annotations
 import matplotlib.ticker as mticker
 import numpy as np
 
+from ..figures import COLORS
+from ..validation import feature_columns, float_array, index_list
 from .common import check_hypothesis
 from .compatibility import check_bundle_density
 from .evaluation import RATES, check_results
 from .jcbb import TRACE_BEST, TRACE_BOUND, TRACE_EXPANDED, TRACE_JC_FAIL, JCBBTrace
-from ..figures import COLORS
-from ..validation import feature_columns, float_array, index_list
 
 __all__ = ["draw_gates", "draw_association", "draw_interpretation_tree", "tree_layout", "ALGORITHM_STYLE",
            "algorithm_style", "plot_rate_sweep", "log_count_axis", "draw_node_counts", "draw_times"]
@@ -69,7 +69,8 @@ def tree_layout(trace: JCBBTrace):
     """(x, y) of every trace node: leaves of the recorded tree at consecutive x in visiting order,
     parents centred over their children, y = −depth."""
     if not isinstance(trace, JCBBTrace):
-        raise ValueError(f"trace must be a JCBBTrace (jcbb(..., trace=True).stats['trace']), got {type(trace).__name__}")
+        raise ValueError(f"trace must be a JCBBTrace (jcbb(..., trace=True).stats['trace']), "
+                         f"got {type(trace).__name__}")
     n = trace.parent.size
     children = [[] for _ in range(n)]
     for i in range(1, n):
@@ -151,8 +152,8 @@ def plot_rate_sweep(ax, results, key: str, confidence: float = 0.95, names=None,
         rate = np.array([results[v].summary()[name][key] for v in results])
         ci = np.array([results[v].interval(name, key, confidence) for v in results])
         shift = jitter * (j - 0.5 * (len(names) - 1))
-        ax.errorbar(xs + shift, rate, yerr=np.clip(np.vstack([rate - ci[:, 0], ci[:, 1] - rate]), 0.0, None), capsize=2.5,
-                    ms=5, label=name, **algorithm_style(name))
+        yerr = np.clip(np.vstack([rate - ci[:, 0], ci[:, 1] - rate]), 0.0, None)
+        ax.errorbar(xs + shift, rate, yerr=yerr, capsize=2.5, ms=5, label=name, **algorithm_style(name))
 
 
 def log_count_axis(ax, axis: str = "y"):

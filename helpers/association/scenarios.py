@@ -94,7 +94,6 @@ class Scenario:
         return labels
 
 
-
 def _generator(seed, rng):
     """The scenario's random generator: ``rng`` if given, else one seeded with ``seed`` (exactly one of them)."""
     if rng is not None and seed is not None:
@@ -106,6 +105,7 @@ def _generator(seed, rng):
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
     return rng
+
 
 def _rot(theta):
     c, s = np.cos(theta), np.sin(theta)
@@ -135,8 +135,6 @@ def observe_points(pose, landmarks):
     return z, J_pose, R.T.copy()
 
 
-
-
 def _check_scenario_arguments(n_landmarks, size, n_visible, max_range, p_detect, n_clutter, pose_sigma,
                               pose_correlation, landmark_sigma, meas_sigma, candidate_range):
     """The checked scenario settings (ValueError names the argument); returns
@@ -151,7 +149,8 @@ def _check_scenario_arguments(n_landmarks, size, n_visible, max_range, p_detect,
         if max_range is None:
             raise ValueError("give n_visible or max_range")
         max_range = positive_number(max_range, "max_range")
-    elif isinstance(n_visible, bool) or not isinstance(n_visible, numbers.Integral) or not 1 <= n_visible <= n_landmarks:
+    elif isinstance(n_visible, bool) or not isinstance(n_visible, numbers.Integral) \
+            or not 1 <= n_visible <= n_landmarks:
         raise ValueError(f"n_visible must be an integer in [1, n_landmarks={n_landmarks}] or None, got {n_visible!r}")
     elif max_range is not None:
         raise ValueError(f"max_range applies only with n_visible=None (the sensor sees its n_visible={n_visible} "
@@ -164,8 +163,8 @@ def _check_scenario_arguments(n_landmarks, size, n_visible, max_range, p_detect,
     if sig.shape != (3,) or not np.all(np.isfinite(sig)) or np.any(sig <= 0):
         raise ValueError(f"pose_sigma must be three positive numbers (σx, σy, σθ), got {pose_sigma!r}")
     corr = DEFAULT_POSE_CORRELATION if pose_correlation is None else float_array(pose_correlation, "pose_correlation")
-    if corr.shape != (3, 3) or not np.all(np.isfinite(corr)) or not np.allclose(corr, corr.T) or not np.allclose(np.diag(corr), 1.0) \
-            or np.min(np.linalg.eigvalsh(corr)) <= 0:
+    if corr.shape != (3, 3) or not np.all(np.isfinite(corr)) or not np.allclose(corr, corr.T) \
+            or not np.allclose(np.diag(corr), 1.0) or np.min(np.linalg.eigvalsh(corr)) <= 0:
         raise ValueError("pose_correlation must be a 3×3 symmetric positive-definite matrix with unit diagonal")
     return size, landmark_sigma, meas_sigma, max_range, candidate_range, sig, corr
 
@@ -191,13 +190,36 @@ def _candidate_density(pose_est, pose_cov, lm_candidates, landmark_sigma, meas_s
     return state, density
 
 
+def _sense(rng, pose_true, lm_true, n_visible, max_range, p_detect, n_clutter, meas_sigma):
+    """(Y, source): the scan — the visible landmarks detected with probability p_detect plus noise, and the
+    clutter uniform in the sensed disc — in random column order, and the landmark behind each column (−1:
+    clutter)."""
+    z_true, _, _ = observe_points(pose_true, lm_true)
+    rng_true = np.hypot(z_true[:, 0], z_true[:, 1])
+    if n_visible is not None:
+        visible = np.argsort(rng_true, kind="stable")[:n_visible]
+        radius = float(rng_true[visible].max())
+    else:
+        visible = np.flatnonzero(rng_true <= max_range)
+        radius = float(max_range)
+    detected = visible[rng.uniform(size=visible.size) < p_detect]
+    z_det = z_true[detected] + meas_sigma * rng.standard_normal((detected.size, 2))
+    r_c = radius * np.sqrt(rng.uniform(size=n_clutter))
+    a_c = rng.uniform(-np.pi, np.pi, n_clutter)
+    z_clut = np.column_stack([r_c * np.cos(a_c), r_c * np.sin(a_c)])
+    Z = np.vstack([z_det, z_clut])
+    perm = rng.permutation(Z.shape[0])                  # column j of Y is row perm[j] of Z
+    return Z[perm].T.copy(), np.concatenate([detected, np.full(n_clutter, -1)])[perm]
+
+
 def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size: float = 30.0,
                            n_visible: int | None = 30, max_range: float | None = None,
                            p_detect: float = 1.0, n_clutter: int = 2,
-                           pose_sigma=(0.5, 0.5, np.deg2rad(8.0)), pose_correlation=None,
+                           pose_sigma=(0.5, 0.5, 0.13962634015954636), pose_correlation=None,
                            landmark_sigma: float = 0.05, meas_sigma: float = 0.1,
                            candidate_range: float | None = None) -> Scenario:
     """Draw one scenario (see the module docstring). Give ``seed`` (int or sequence) or a ``rng``.
+    pose_sigma: (σx [m], σy [m], σθ [rad]); the default σθ is 8°.
 
     n_visible: the sensor sees the n_visible nearest landmarks (None: all within max_range).
     max_range: sensor range; only with n_visible=None, where it decides visibility.
@@ -217,24 +239,7 @@ def range_bearing_scenario(seed=None, rng=None, *, n_landmarks: int = 150, size:
     pose_est = pose_true + np.linalg.cholesky(pose_cov) @ rng.standard_normal(3)
     lm_est = lm_true + landmark_sigma * rng.standard_normal((n_landmarks, 2))
 
-    # --- sensing ----------------------------------------------------------------------------------------
-    z_true, _, _ = observe_points(pose_true, lm_true)
-    rng_true = np.hypot(z_true[:, 0], z_true[:, 1])
-    if n_visible is not None:
-        visible = np.argsort(rng_true, kind="stable")[:n_visible]
-        radius = float(rng_true[visible].max())
-    else:
-        visible = np.flatnonzero(rng_true <= max_range)
-        radius = float(max_range)
-    detected = visible[rng.uniform(size=visible.size) < p_detect]
-    z_det = z_true[detected] + meas_sigma * rng.standard_normal((detected.size, 2))
-    r_c = radius * np.sqrt(rng.uniform(size=n_clutter))
-    a_c = rng.uniform(-np.pi, np.pi, n_clutter)
-    z_clut = np.column_stack([r_c * np.cos(a_c), r_c * np.sin(a_c)])
-    Z = np.vstack([z_det, z_clut])
-    perm = rng.permutation(Z.shape[0])                  # column j of Y is row perm[j] of Z
-    Y = Z[perm].T.copy()
-    source = np.concatenate([detected, np.full(n_clutter, -1)])[perm]   # landmark behind each column
+    Y, source = _sense(rng, pose_true, lm_true, n_visible, max_range, p_detect, n_clutter, meas_sigma)
 
     # --- candidates and their predicted-measurement density ---------------------------------------------
     if candidate_range is None:

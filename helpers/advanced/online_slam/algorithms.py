@@ -18,10 +18,10 @@ import numbers
 
 import numpy as np
 
-from ...association.jcbb import jcbb
 from ...association.maximum_likelihood import maximum_likelihood
 from ...association.nearest_neighbour import mahalanobis_nn, nearest_neighbour
 from ...validation import integer
+from ..jcbb_fast import jcbb
 
 __all__ = ["ALGORITHMS", "check_algorithm", "check_options", "associate"]
 

@@ -1,7 +1,8 @@
-"""Compiled JCBB search (numba): the fast tier behind :func:`helpers.association.jcbb.jcbb`.
+"""Compiled JCBB search (numba), one loop over an explicit stack: the kernel of ``helpers.advanced.jcbb_fast``.
 
-The search is the same depth-first walk of the interpretation tree as ``jcbb_reference``; what makes it
-fast is that no joint covariance is ever factorised from scratch (lecture L09, incremental joint distance).
+It walks the interpretation tree of :mod:`helpers.association.jcbb` with the same bound, so it returns the
+same association after the same number of nodes; what makes it faster is that the whole search is compiled
+and that no conditional covariance is formed: only the block columns of the Cholesky factor it needs.
 
 **Incremental joint distance.** At a node H with a pairings, C_H = L Lᵀ and w = L⁻¹ f_H (D²_H = ‖w‖²).
 Appending the pairing (k, i), with B = Cov(f_H, ν_k) = P[rows(H), rows(k)] and D = P_kk:
@@ -22,11 +23,7 @@ compatibly, and the longest chain of later levels whose best conditional candida
 jointly compatible; plus an order-statistic test on D² when a + possible only ties pairings(Best). The
 node is cut (:func:`_cannot_beat`) when a + possible < pairings(Best), or = and D²_H ≥ D²_Best.
 
-**Trace.** Every visited node, JC rejection and bound cut can be recorded (``TRACE_*`` status codes) for
-drawing the tree; :func:`_record` appends an entry, :func:`_mark` changes a recorded node's status.
-
-Determinism: no parallelism, no fastmath; the helpers keep the operation order of the numerics, so results,
-node counts and traces do not depend on how the kernel is split. Speed: numba reference-counts every array
+Determinism: no parallelism, no fastmath. Speed: numba reference-counts every array
 passed to a call, so helpers unpack tuple fields into locals before their loops, and the per-level and
 per-candidate loops call only tiny ``inline="always"`` helpers.
 """
@@ -37,12 +34,7 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-__all__ = ["TRACE_EXPANDED", "TRACE_JC_FAIL", "TRACE_BOUND", "TRACE_BEST", "jcbb_search"]
-
-TRACE_EXPANDED = 0   #: node expanded (passed the joint gate and the bound)
-TRACE_JC_FAIL = 1    #: child rejected by the joint χ² gate (its subtree is never visited)
-TRACE_BOUND = 2      #: node cut by the bound (cannot beat the incumbent)
-TRACE_BEST = 3       #: node expanded and became the new incumbent Best
+__all__ = ["jcbb_search"]
 
 #: The search tree: landmark of each level, IC candidates of level t in cand_obs[cand_ptr[t]:cand_ptr[t+1]]
 #: (observation order), last_level[o] = last level listing observation o (−1: none), thresh[a] = χ²_{d·a}.
@@ -50,12 +42,10 @@ _Tree = namedtuple("_Tree", "levels cand_ptr cand_obs last_level thresh")
 #: Conditional predictions given the first j pairings of H: GT = Gᵀ, mean[j, q], chol[j, q], ok[j, q].
 _Conditionals = namedtuple("_Conditionals", "GT mean chol ok")
 #: Per-level DFS state: the JC children (obs, d2, n_children) nearest first, the next child to try, whether
-#: the star was taken, the active choice, D²_H before it, and the trace entry of the node at each depth.
-_Stack = namedtuple("_Stack", "obs d2 n_children next_child star_done choice d2_before node")
+#: the star was taken, the active choice and D²_H before it.
+_Stack = namedtuple("_Stack", "obs d2 n_children next_child star_done choice d2_before")
 #: Search scratch: used observations, the d²-cache per depth (and whether it is valid), small buffers.
 _Work = namedtuple("_Work", "used mark mins dcache dvalid tmp wn Gn Sq")
-#: Trace buffer; count = [entries recorded, truncated flag]. Zero-length arrays: no trace.
-_TraceBuffer = namedtuple("_TraceBuffer", "parent level obs status d2 count")
 
 
 # -- small dense linear algebra ----------------------------------------------------------------------------
@@ -161,9 +151,8 @@ def _condition_on_pairing(cond, P, Y, d, levels, k, t, o, work):
 def _fill_d2_cache(cond, Y, tree, k, t, D2, work):
     """dcache[k, e] = D²_H + d²(o_e | q_e, H) for every candidate edge e of the levels t… (inf when o_e is
     used). H is fixed while the search stays at depth k (stars do not change it): computed once per
-    pairing, not once per node. Returns the number of joint distances evaluated."""
+    pairing, not once per node."""
     cand_ptr, cand_obs, used, dcache, tmp = tree.cand_ptr, tree.cand_obs, work.used, work.dcache, work.tmp
-    evals = 0
     for q in range(t, tree.levels.size):
         for e in range(cand_ptr[q], cand_ptr[q + 1]):
             o = cand_obs[e]
@@ -171,9 +160,7 @@ def _fill_d2_cache(cond, Y, tree, k, t, D2, work):
                 dcache[k, e] = np.inf
             else:
                 dcache[k, e] = D2 + _whitened_sq(cond.chol[k, q], Y, cond.mean[k, q], o, tmp)
-                evals += 1
     work.dvalid[k] = True
-    return evals
 
 
 # -- the bound ---------------------------------------------------------------------------------------------
@@ -251,43 +238,6 @@ def _cannot_beat(k, possible, D2, best_k, best_d2):
     return k + possible < best_k or (k + possible == best_k and D2 >= best_d2)
 
 
-# -- trace recording ---------------------------------------------------------------------------------------
-@numba.njit(cache=True)
-def _new_trace(trace_cap):
-    """Trace buffer for at most trace_cap entries (0: no trace); entry 0 is the root."""
-    tr = _TraceBuffer(np.full(trace_cap, -1, dtype=np.int64), np.full(trace_cap, -1, dtype=np.int64),
-                      np.full(trace_cap, -1, dtype=np.int64), np.full(trace_cap, TRACE_EXPANDED, dtype=np.int64),
-                      np.zeros(trace_cap), np.zeros(2, dtype=np.int64))
-    if trace_cap > 0:
-        tr.count[0] = 1
-    return tr
-
-
-@numba.njit(cache=True, inline="always")
-def _record(tr, parent, level, obs, status, d2):
-    """Append a trace entry; returns its index, or −1 (no trace, or the buffer is full: truncated)."""
-    if tr.status.size == 0:
-        return -1
-    i = tr.count[0]
-    if i >= tr.status.size:
-        tr.count[1] = 1
-        return -1
-    tr.parent[i] = parent
-    tr.level[i] = level
-    tr.obs[i] = obs
-    tr.status[i] = status
-    tr.d2[i] = d2
-    tr.count[0] = i + 1
-    return i
-
-
-@numba.njit(cache=True, inline="always")
-def _mark(tr, node, status):
-    """Set the status of the recorded node ``node`` (nothing if it was not recorded)."""
-    if tr.status.size > 0 and node >= 0:
-        tr.status[node] = status
-
-
 # -- node expansion and the depth-first stack --------------------------------------------------------------
 @numba.njit(cache=True)
 def _new_stack(tree):
@@ -298,7 +248,7 @@ def _new_stack(tree):
         maxc = max(maxc, tree.cand_ptr[t + 1] - tree.cand_ptr[t])
     return _Stack(np.zeros((Tm, maxc), dtype=np.int64), np.zeros((Tm, maxc)), np.zeros(Tm, dtype=np.int64),
                   np.zeros(Tm, dtype=np.int64), np.zeros(Tm, dtype=np.bool_), np.full(Tm, -1, dtype=np.int64),
-                  np.zeros(Tm), np.zeros(T + 1, dtype=np.int64))
+                  np.zeros(Tm))
 
 
 @numba.njit(cache=True)
@@ -322,9 +272,9 @@ def _insert_child(stack, t, nc, o, d2new):
 
 
 @numba.njit(cache=True)
-def _expand_level(cond, tree, k, t, work, stack, tr):
+def _expand_level(cond, tree, k, t, work, stack):
     """Children of the node at level t: the unused IC observations whose joint D² (from the d²-cache)
-    passes χ²_{d(k+1)}, nearest first; the others fail the joint gate (recorded as TRACE_JC_FAIL)."""
+    passes χ²_{d(k+1)}, nearest first."""
     cand_obs, used, dcache = tree.cand_obs, work.used, work.dcache
     nc = 0
     K = cond.mean.shape[0] - 1
@@ -337,8 +287,6 @@ def _expand_level(cond, tree, k, t, work, stack, tr):
             if d2new <= tree.thresh[k + 1]:
                 _insert_child(stack, t, nc, o, d2new)
                 nc += 1
-            else:
-                _record(tr, stack.node[t], t, o, TRACE_JC_FAIL, d2new)
     stack.n_children[t] = nc
     stack.next_child[t] = 0
     stack.star_done[t] = False
@@ -348,7 +296,7 @@ def _expand_level(cond, tree, k, t, work, stack, tr):
 @numba.njit(cache=True)
 def _take_next_child(cond, P, Y, d, tree, k, t, D2, idx, work, stack):
     """Pair level t's landmark with its next child observation o (H has k pairings and distance D2):
-    condition the later levels on it and mark o used. Returns (o, D² of the child)."""
+    condition the later levels on it and mark o used. Returns D² of the child."""
     c = stack.next_child[t]
     stack.next_child[t] += 1
     o = stack.obs[t, c]
@@ -358,7 +306,7 @@ def _take_next_child(cond, P, Y, d, tree, k, t, D2, idx, work, stack):
     work.used[o] = True
     idx[tree.levels[t]] = o
     stack.choice[t] = o
-    return o, stack.d2[t, c]
+    return stack.d2[t, c]
 
 
 @numba.njit(cache=True)
@@ -373,13 +321,12 @@ def _undo_choice(tree, t, idx, work, stack):
 
 # -- the search --------------------------------------------------------------------------------------------
 @numba.njit(cache=True)
-def jcbb_search(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, max_nodes, trace_cap):
+def jcbb_search(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, max_nodes):
     """Depth-first branch and bound over the interpretation tree (iterative: an explicit per-level stack).
 
     Entering a node (depth k = pairings of H, level t): bound → budget → count → incumbent → expand.
     Advancing level t: undo the active choice, then take the next child, else the star, else go up.
-    Returns (best_idx, best_k, best_d2, nodes, jc_evaluations, budget_exhausted, trace parent, level,
-    obs, status, d2, truncated).
+    Returns (best_idx, best_k, best_d2, nodes, budget_exhausted).
     """
     tree = _Tree(levels, cand_ptr, cand_obs, last_level, thresh)
     T = levels.size
@@ -387,58 +334,50 @@ def jcbb_search(mu, P, Y, d, levels, cand_ptr, cand_obs, last_level, thresh, max
     cond = _initial_conditionals(mu, P, d, levels, K)
     work = _new_work(d, Y.shape[1], T, K, cand_obs.size)
     stack = _new_stack(tree)
-    tr = _new_trace(trace_cap)
     idx = np.full(mu.size // d, -1, dtype=np.int64)
     best_idx = idx.copy()
     best_k, best_d2 = 0, np.inf
     k, D2, t = 0, 0.0, 0
-    nodes, jc_evals = 0, 0
+    nodes = 0
     exhausted = False
     entering = True
     while True:
         if entering:
             entering = False
             if t < T and not work.dvalid[k]:
-                jc_evals += _fill_d2_cache(cond, Y, tree, k, t, D2, work)
+                _fill_d2_cache(cond, Y, tree, k, t, D2, work)
             possible = _pairings_bound(cond, tree, k, t, D2, best_k, best_d2, work)
             if _cannot_beat(k, possible, D2, best_k, best_d2):
-                _mark(tr, stack.node[t], TRACE_BOUND)
                 t -= 1
                 if t < 0:
                     break
                 continue
             if max_nodes >= 0 and nodes >= max_nodes:
                 exhausted = True
-                _mark(tr, stack.node[t], TRACE_BOUND)
                 break
             nodes += 1
             if k > best_k or (k == best_k and D2 < best_d2):        # incumbent: H completed with stars
                 best_k, best_d2 = k, D2
                 best_idx[:] = idx
-                _mark(tr, stack.node[t], TRACE_BEST)
             if t == T:
                 t -= 1
                 if t < 0:
                     break
                 continue
-            _expand_level(cond, tree, k, t, work, stack, tr)
+            _expand_level(cond, tree, k, t, work, stack)
         if stack.choice[t] >= 0:
             D2 = _undo_choice(tree, t, idx, work, stack)
             k -= 1
         if stack.next_child[t] < stack.n_children[t]:
-            obs_here, D2 = _take_next_child(cond, P, Y, d, tree, k, t, D2, idx, work, stack)
+            D2 = _take_next_child(cond, P, Y, d, tree, k, t, D2, idx, work, stack)
             k += 1
         elif not stack.star_done[t]:
             stack.star_done[t] = True          # a star keeps H: the predictions at depth k stay valid
-            obs_here = -1
         else:
             t -= 1
             if t < 0:
                 break
             continue
-        stack.node[t + 1] = _record(tr, stack.node[t], t, obs_here, TRACE_EXPANDED, D2)
         t += 1
         entering = True
-    n = tr.count[0]
-    return (best_idx, best_k, best_d2, nodes, jc_evals, exhausted, tr.parent[:n], tr.level[:n], tr.obs[:n],
-            tr.status[:n], tr.d2[:n], tr.count[1] == 1)
+    return best_idx, best_k, best_d2, nodes, exhausted
