@@ -232,6 +232,21 @@ class GraphElements:
             raise GraphError(f"vertex({id}): several classes use this id; pass cls")
         return hits[0] if hits else None
 
+    def _own_vertices(self, vertices, what):
+        """``vertices`` (None: all) as a list, each a vertex of this graph; ValueError / GraphError otherwise."""
+        if vertices is None:
+            return self.vertices()
+        if isinstance(vertices, (BaseVertex, str)) or not hasattr(vertices, "__iter__"):
+            raise ValueError(f"{what}: vertices must be a list of vertices of this graph (or None for all), "
+                             f"got {vertices!r}")
+        vertices = list(vertices)
+        for v in vertices:
+            if not isinstance(v, BaseVertex):
+                raise GraphError(f"{what}: expected vertices of this graph, got {v!r}")
+            if v._graph is not self:
+                raise GraphError(f"{what}: {v!r} is not in this graph")
+        return vertices
+
     def vertices(self):
         """All vertices, in the order they were added."""
         return [v for v in self._vertex_store.objects if v is not None]

@@ -43,7 +43,6 @@ from .elements import GraphElements, nonfinite_error, total_chi2
 from .errors import GraphError, NonFiniteError
 from .layout import add_normal_equations, build_layout
 from .marginals import marginal_blocks
-from .vertex import BaseVertex
 
 __all__ = ["SparseOptimizer"]
 
@@ -332,17 +331,7 @@ class SparseOptimizer(GraphElements):
     def compute_marginals(self, vertices=None) -> dict:
         """{vertex: covariance block} of H⁻¹ at the current estimates for ``vertices`` (default: all); a fixed
         vertex gets a zero block. GraphError when H is not positive definite (no covariance exists)."""
-        if vertices is None:
-            vertices = self.vertices()
-        if isinstance(vertices, (BaseVertex, str)) or not hasattr(vertices, "__iter__"):
-            raise ValueError(f"compute_marginals: vertices must be a list of vertices of this graph (or None for "
-                             f"all), got {vertices!r}")
-        vertices = list(vertices)
-        for v in vertices:
-            if not isinstance(v, BaseVertex):
-                raise GraphError(f"compute_marginals: expected vertices of this graph, got {v!r}")
-            if v._graph is not self:
-                raise GraphError(f"compute_marginals: {v!r} is not in this graph")
+        vertices = self._own_vertices(vertices, "compute_marginals")
         self._require_layout("compute_marginals")
         data = self._linearise("compute_marginals")[1]
         if any(self._hessian_index[v._h] >= 0 for v in vertices) and not self._factorise(data):

@@ -31,7 +31,6 @@ import scipy.sparse as sp
 from ...graph.elements import GraphElements
 from ...graph.errors import GraphError
 from ...graph.marginals import marginal_blocks
-from ...graph.vertex import BaseVertex
 from ...validation import boolean, integer
 from .algorithms import GaussNewtonParams, GTSAMLevenbergMarquardtParams, LevenbergMarquardtParams
 from .algorithms_default import DefaultParams, select_algorithm
@@ -216,17 +215,7 @@ class FastOptimizer(GraphElements):
         zero block. Uses the sparse inverse on the pattern of
         the LDLᵀ factor (Takahashi recursion), never a dense inverse.
         """
-        if vertices is None:
-            vertices = self.vertices()
-        if isinstance(vertices, (BaseVertex, str)) or not hasattr(vertices, "__iter__"):
-            raise ValueError(f"compute_marginals: vertices must be a list of vertices of this graph (or None for "
-                             f"all), got {vertices!r}")
-        vertices = list(vertices)
-        for v in vertices:
-            if not isinstance(v, BaseVertex):
-                raise GraphError(f"compute_marginals: expected vertices of this graph, got {v!r}")
-            if v._graph is not self:
-                raise GraphError(f"compute_marginals: {v!r} is not in this graph")
+        vertices = self._own_vertices(vertices, "compute_marginals")
         data = self._current_linear_system("compute_marginals").hessian_data
         if any(self._hessian_index[v._h] >= 0 for v in vertices):
             if not np.all(np.isfinite(data)):
