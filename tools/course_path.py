@@ -12,6 +12,7 @@ the advanced part (the rest of ``helpers``) for comparison. ``--check`` exits 1 
 
     python tools/course_path.py            # the table
     python tools/course_path.py --list     # and every module of the course path with its lines
+    python tools/course_path.py --unhinted # and every public function of it without full type hints
 """
 from __future__ import annotations
 
@@ -109,6 +110,29 @@ def long_functions(path: pathlib.Path, limit: int) -> list[tuple[str, int]]:
     return out
 
 
+def unhinted_functions(path: pathlib.Path) -> list[str]:
+    """Public functions and methods (name without a leading underscore, in a public class; ``__init__`` counts)
+    with a parameter other than self/cls, or a return, left unannotated (``__init__``'s return excepted)."""
+    out = []
+
+    def missing(f) -> bool:
+        a = f.args
+        params = a.posonlyargs + a.args + a.kwonlyargs + [p for p in (a.vararg, a.kwarg) if p]
+        params = [p for p in params if p.arg not in ("self", "cls")]
+        return any(p.annotation is None for p in params) or (f.returns is None and f.name != "__init__")
+
+    def walk(node, prefix):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                public = not child.name.startswith("_") or child.name == "__init__"
+                if public and missing(child):
+                    out.append(prefix + child.name)
+            elif isinstance(child, ast.ClassDef) and not child.name.startswith("_"):
+                walk(child, prefix + child.name + ".")
+    walk(ast.parse(path.read_text(encoding="utf-8")), "")
+    return out
+
+
 def lines(name: str) -> int:
     return len(MODULES[name].read_text(encoding="utf-8").splitlines())
 
@@ -117,16 +141,20 @@ def report(title: str, names: set[str]) -> dict:
     total = sum(lines(m) for m in names)
     big = sorted((lines(m), m) for m in names if lines(m) > MODULE_LINES)
     long = [(m, f, n) for m in sorted(names) for f, n in long_functions(MODULES[m], FUNCTION_LINES)]
+    unhinted = [(m, f) for m in sorted(names) for f in unhinted_functions(MODULES[m])]
     print(f"{title}: {len(names)} modules, {total} lines")
     print(f"  modules over {MODULE_LINES} lines: {len(big)}" + "".join(f"\n    {m} ({n})" for n, m in big))
     print(f"  functions over {FUNCTION_LINES} lines: {len(long)}"
           + "".join(f"\n    {m}:{f} ({n})" for m, f, n in long))
-    return {"lines": total, "big": big, "long": long}
+    print(f"  public functions without full type hints: {len(unhinted)}"
+          + (f" (first: {', '.join(m + ':' + f for m, f in unhinted[:5])})" if unhinted else ""))
+    return {"lines": total, "big": big, "long": long, "unhinted": unhinted}
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--list", action="store_true", help="list the course path's modules")
+    parser.add_argument("--unhinted", action="store_true", help="list the course path's functions without hints")
     parser.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
     args = parser.parse_args(argv)
     roots = set().union(*(notebook_imports(p) for p in COURSE_NOTEBOOKS)) | exercise_modules()
@@ -136,10 +164,14 @@ def main(argv=None) -> int:
     if args.list:
         for m in sorted(course):
             print(f"    {lines(m):5d}  {m}")
+    if args.unhinted:
+        for m, f in course_report["unhinted"]:
+            print(f"    {m}:{f}")
     report("advanced part and the rest of helpers", set(MODULES) - course)
     print(f"target: course path ≤ {TARGET_LINES} lines, no module over {MODULE_LINES}, "
-          f"no function over {FUNCTION_LINES}")
-    missed = (course_report["lines"] > TARGET_LINES or course_report["big"] or course_report["long"])
+          f"no function over {FUNCTION_LINES}, type hints on every public function")
+    missed = (course_report["lines"] > TARGET_LINES or course_report["big"] or course_report["long"]
+              or course_report["unhinted"])
     return int(bool(args.check and missed))
 
 
