@@ -1,6 +1,7 @@
 """Online SLAM with data association (issue 15): the targets table.
 
-    .venv/bin/python benchmarks/online_slam.py [--sections targets,timing,nn,vp,vpodometry,vpnoise,period]
+    .venv/bin/python benchmarks/online_slam.py [--sections targets,timing,nn,vp,vpodometry,vpnoise,vpschedule,
+                                                          period]
                                                [--repeats 2]
                                                [--seeds 0,1,2,3,4]
 
@@ -22,6 +23,10 @@ Sections (each prints a markdown table):
 - ``vpodometry`` (not in the default list; about 3 min): notebook 23's ``ODOMETRY_SCALE``. The file's tree noise
   with the odometry covariance scaled by 1, 3, 5, 10, 30 and 100: agreement, landmarks, trees mapped a second time
   (``vp_analysis.duplicate_landmarks``) and how many of them after 200 odometry steps or more out of sight.
+- ``vpschedule`` (not in the default list; about 2 min): the known-id reference's final estimate against its
+  optimisation period (10 … 200 poses), with the file's noise model and with the odometry covariance × 10: final χ²,
+  the largest position difference to the period-10 run, CPU time (why the reference is optimised every
+  ``KNOWN_ID_PERIOD`` poses).
 - ``period`` (not in the default list; about 1 min per seed): q2_e with "jcbb" over ``--seeds``, no clutter, with
   the graph updated for association every 100 (the default), 120, 150, 175, 200 and 250 ticks
   (``association_period``): time, precision, recall, landmarks, merges into old landmarks (and how many joined two
@@ -200,6 +205,29 @@ def victoria_park_odometry():
                     f"{r['final_chi2']:.0f}", f"{r['run_time']:.1f} ({cpu:.1f})"]), flush=True)
 
 
+def victoria_park_schedule():
+    """The known-id pipeline's final estimate against its optimisation period."""
+    from helpers.advanced.online_slam import victoria_park as vp
+    from helpers.datasets import read_dataset
+
+    print("\n### Victoria Park with the file's ids: the final estimate against the optimisation period\n")
+    print(_row(["odometry covariance ×", "period [poses]", "optimisations", "final χ²",
+                "largest position difference to period 10", "CPU [s]"]))
+    print(_row(["---"] * 6))
+    model = vp.RangeBearingModel(vp.MAX_RANGE, field_of_view=vp.FIELD_OF_VIEW, range_margin=2.0, bearing_margin=0.1)
+    for scale in (1.0, 10.0):
+        stream = vp._with_sigmas(vp.victoria_park_scans(read_dataset("victoria_park")), None, scale)
+        base = None
+        for period in (10, 20, 50, 100, 200):
+            t0 = time.process_time()
+            graph, _, _, chi2, n_opt, _ = vp._process(stream, None, model, period, {})
+            cpu = time.process_time() - t0
+            poses = np.array([v.estimate for v in graph.vertices() if v.estimate.size == 3])
+            base = poses if base is None else base
+            diff = np.abs(poses[:, :2] - base[:, :2]).max()
+            print(_row([f"{scale:g}", period, n_opt, f"{chi2:.4f}", f"{diff:.1e} m", f"{cpu:.1f}"]), flush=True)
+
+
 def _poor_fits(graph, limit):
     """Range-bearing edges of the graph with eᵀΩe > limit: how many, and their χ² together."""
     chi2 = np.array([e.chi2() for e in graph.edges() if isinstance(e, EdgeRangeBearing)])
@@ -250,6 +278,8 @@ def main():
         victoria_park_odometry()
     if "vpnoise" in sections:
         victoria_park_noise()
+    if "vpschedule" in sections:
+        victoria_park_schedule()
     if "period" in sections:
         association_periods(seeds)
 
