@@ -1,5 +1,5 @@
 """The calibrated camera: OpenCV's 12-coefficient distortion model, its Jacobians and FOV (the inverse model:
-``helpers.camera_inverse``; file I/O: ``helpers.camera_io``).
+``helpers.camera_inverse``; reading the calibration file: ``helpers.camera_io``).
 
 Model (course Lab 7/8; identical to ``cv2.projectPoints`` with the RATIONAL + THIN_PRISM model, no tilt).
 For a point rPCc = [x, y, z] in the camera frame {c} (z along the optical axis, x right, y down):
@@ -33,26 +33,19 @@ Jacobians are (2, 3) / (N, 2, 3).
 """
 from __future__ import annotations
 
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .camera_inverse import fold_radius, undistort
-from .camera_io import (
-    _REQUIRED_FLAGS,
-    CALIB_RATIONAL_MODEL,
-    CALIB_THIN_PRISM_MODEL,
-    CALIB_TILTED_MODEL,
-    check_calibration,
-    read_camera_xml,
-    write_camera_xml,
-)
+from .camera_io import REQUIRED_FLAGS, check_calibration, read_camera_xml
 from .paths import data_dir
 from .rotation import rot2rpy, rpy2rot, rpy2rot_derivatives
-from .validation import boolean, float_array, integer, positive_number
+from .validation import boolean, finite_vector, float_array, integer, positive_number
 
-__all__ = ["Camera", "ProjectionError", "PoseJacobians", "FOVAngles", "CALIB_RATIONAL_MODEL", "CALIB_THIN_PRISM_MODEL",
-           "CALIB_TILTED_MODEL", "load_lab_camera"]
+__all__ = ["Camera", "ProjectionError", "PoseJacobians", "FOVAngles", "load_lab_camera"]
 
 
 def load_lab_camera() -> Camera:
@@ -84,13 +77,13 @@ class ProjectionError(ValueError):
     """World point(s) behind the camera (z ≤ 0 in {c}) or beyond the lens fold (off-axis angle ≥
     ``max_off_axis_angle()``): no valid pixel. ``columns``: offending columns; ``reason``: "behind" / "fold"."""
 
-    def __init__(self, message, columns, reason):
+    def __init__(self, message: str, columns: ArrayLike, reason: str) -> None:
         super().__init__(message)
         self.columns = np.asarray(columns, dtype=np.intp)
         self.reason = reason
 
 
-def _points(P, name, rows=3):
+def _points(P: ArrayLike, name: str, rows: int = 3) -> np.ndarray:
     P = float_array(P, name)
     if P.ndim not in (1, 2) or P.shape[0] != rows:
         raise ValueError(f"{name} must have shape ({rows},) or ({rows}, N), got {P.shape}")
@@ -99,23 +92,17 @@ def _points(P, name, rows=3):
     return P
 
 
-def _pose(eta, name):
-    eta = float_array(eta, name)
-    if eta.shape != (6,):
-        raise ValueError(f"{name} must have shape (6,) = [position (3); roll, pitch, yaw (3)], got {eta.shape}")
-    if not np.all(np.isfinite(eta)):
-        raise ValueError(f"{name} must be finite (no NaN/inf)")
-    return eta
+def _pose(eta: ArrayLike, name: str) -> np.ndarray:
+    """A pose [position (3); roll, pitch, yaw (3)] as a finite (6,) array."""
+    return finite_vector(eta, name, 6)
 
 
-def _non_finite_pixel_message(P, u, v, finite):
-    """Why columns of rPCc give no finite pixel: x/z, y/z overflow, or the denominator 1 + β vanishes."""
-    bad = np.flatnonzero(~finite)
-    with np.errstate(over="ignore", invalid="ignore"):
-        rho = u[bad] * u[bad] + v[bad] * v[bad]
-    why = ("too far off the optical axis (|x/z| or |y/z| overflows)" if not np.all(rho < 1e150)
-           else "where the distortion denominator 1 + β vanishes")
-    return f"rPCc has point(s) at column(s) {bad.tolist()} (e.g. {P[:, bad[0]].tolist()}) {why}: no finite pixel"
+def _check_finite_pixels(P: np.ndarray, values: np.ndarray) -> None:
+    """ValueError naming the columns of rPCc whose pixel (or Jacobian) ``values`` are not finite."""
+    bad = np.flatnonzero(~np.all(np.isfinite(values.reshape(-1, P.shape[1])), axis=0))
+    if bad.size:
+        raise ValueError(f"rPCc has point(s) at column(s) {bad.tolist()} (e.g. {P[:, bad[0]].tolist()}) too far off "
+                         "the optical axis, or where the distortion denominator 1 + β vanishes: no finite pixel")
 
 
 class Camera:
@@ -132,15 +119,13 @@ class Camera:
     flags : OpenCV calibration flags; must include RATIONAL (16384) and THIN_PRISM (32768), not TILTED
     """
 
-    def __init__(self, K, dist_coeffs, image_size, r_cb_b=None, R_bc=None, flags: int = _REQUIRED_FLAGS):
+    def __init__(self, K: ArrayLike, dist_coeffs: ArrayLike, image_size: tuple[int, int],
+                 r_cb_b: ArrayLike | None = None, R_bc: ArrayLike | None = None, flags: int = REQUIRED_FLAGS) -> None:
         K, d, size, flags = check_calibration(K, dist_coeffs, image_size, flags)
-        r_cb_b = np.zeros(3) if r_cb_b is None else np.array(float_array(r_cb_b, "r_cb_b"))
-        if r_cb_b.shape != (3,) or not np.all(np.isfinite(r_cb_b)):
-            raise ValueError(f"r_cb_b must be a finite vector of shape (3,), got shape {r_cb_b.shape}")
+        r_cb_b = np.zeros(3) if r_cb_b is None else finite_vector(r_cb_b, "r_cb_b", 3).copy()
         R_bc = np.eye(3) if R_bc is None else np.array(float_array(R_bc, "R_bc"))
-        if R_bc.shape != (3, 3) or not np.all(np.isfinite(R_bc)) or not np.allclose(R_bc.T @ R_bc, np.eye(3),
-                                                                                     atol=1e-9) \
-                or np.linalg.det(R_bc) <= 0:
+        if R_bc.shape != (3, 3) or not np.all(np.isfinite(R_bc)) or np.linalg.det(R_bc) <= 0 \
+                or not np.allclose(R_bc.T @ R_bc, np.eye(3), atol=1e-9):
             raise ValueError("R_bc must be a (3, 3) rotation matrix")
         self.K = K
         self.dist_coeffs = d
@@ -152,7 +137,6 @@ class Camera:
             array.setflags(write=False)
         self.fold_radius = fold_radius(d, self._distort)
 
-    # -- convenience -----------------------------------------------------------------------------------
     @property
     def width(self) -> int:
         return self.image_size[0]
@@ -165,9 +149,8 @@ class Camera:
         fx, fy, cx, cy = self.K[0, 0], self.K[1, 1], self.K[0, 2], self.K[1, 2]
         return f"Camera(fx={fx:.3f}, fy={fy:.3f}, cx={cx:.3f}, cy={cy:.3f}, image_size={self.image_size})"
 
-    # -- file I/O (helpers.camera_io) ---------------------------------------------------------------------
     @classmethod
-    def from_xml(cls, path) -> Camera:
+    def from_xml(cls, path: str | Path) -> Camera:
         """Read an OpenCV FileStorage file with a map ``camera`` holding ``camera_matrix`` (3×3),
         ``distortion_coefficients`` (12×1), ``flags`` (int) and ``imageSize`` (2 ints: width height)."""
         K, d, image_size, flags = read_camera_xml(path)
@@ -176,12 +159,8 @@ class Camera:
         except ValueError as exc:
             raise ValueError(f"{path}: invalid camera data: {exc}") from None
 
-    def to_xml(self, path) -> None:
-        """Write the calibration in the format read by :meth:`from_xml` (the body mounting is not stored)."""
-        write_camera_xml(path, self.K, self.dist_coeffs, self.image_size, self.flags)
-
-    # -- the distortion model in normalised coordinates ---------------------------------------------------
-    def _distort(self, u, v, jacobian: bool):
+    def _distort(self, u: np.ndarray, v: np.ndarray, jacobian: bool) -> tuple[np.ndarray, ...]:
+        """(u', v') of the lens model at (u, v); with ``jacobian`` also ∂u'/∂u, ∂u'/∂v, ∂v'/∂u, ∂v'/∂v."""
         k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = self.dist_coeffs
         rho = u * u + v * v
         alpha = rho * (k1 + rho * (k2 + rho * k3))
@@ -201,7 +180,7 @@ class Camera:
         dvv = c + 2 * v * v * c_r + 6 * p1 * v + 2 * p2 * u + 2 * s3 * v + 4 * s4 * rho * v
         return ud, vd, duu, duv, dvu, dvv
 
-    def distort(self, u, v):
+    def distort(self, u: ArrayLike, v: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """The lens model in normalised coordinates: (u, v) = (x/z, y/z) ↦ (u', v') (arrays broadcast)."""
         u = float_array(u, "u")
         v = float_array(v, "v")
@@ -209,8 +188,8 @@ class Camera:
             raise ValueError("u and v must be finite (no NaN/inf)")
         return self._distort(u, v, False)
 
-    # -- projection ----------------------------------------------------------------------------------------
-    def vector_to_pixel(self, rPCc, return_jacobian: bool = False):
+    def vector_to_pixel(self, rPCc: ArrayLike, return_jacobian: bool = False) \
+            -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """Pixel of the camera-frame vector(s) rPCc ((3,) or (3, N)); with ``return_jacobian`` also
         ∂pixel/∂rPCc ((2, 3) or (N, 2, 3)). Points with z = 0 raise ValueError; z < 0 is projected through
         x/z like OpenCV (no sign check — use :meth:`is_vector_within_fov` to select visible points)."""
@@ -231,8 +210,7 @@ class Camera:
             u, v = x / z, y / z
             out = self._distort(u, v, return_jacobian)
             Q = np.vstack([fx * out[0] + cx, fy * out[1] + cy])
-        if not np.all(np.isfinite(Q)):
-            raise ValueError(_non_finite_pixel_message(P, u, v, np.all(np.isfinite(Q), axis=0)))
+        _check_finite_pixels(P, Q)
         if not return_jacobian:
             return Q
         _, _, duu, duv, dvu, dvv = out
@@ -246,11 +224,10 @@ class Camera:
         J[:, 1, 0] = fy * dvu * iz
         J[:, 1, 1] = fy * dvv * iz
         J[:, 1, 2] = -fy * (dvu * u + dvv * v) * iz
-        if not np.all(np.isfinite(J)):
-            raise ValueError(_non_finite_pixel_message(P, u, v, np.all(np.isfinite(J), axis=(1, 2))))
+        _check_finite_pixels(P, J.reshape(N, 6).T)
         return Q, J
 
-    def world_to_vector(self, rPNn, eta) -> np.ndarray:
+    def world_to_vector(self, rPNn: ArrayLike, eta: ArrayLike) -> np.ndarray:
         """rPCc = Rncᵀ (rPNn − rCNn) for world point(s) rPNn ((3,) or (3, N)) and camera pose
         eta = [rCNn; Θnc] (6,)."""
         P = _points(rPNn, "rPNn")
@@ -292,7 +269,8 @@ class Camera:
             return Q[:, 0], PoseJacobians(*(j[0] for j in jac))
         return Q, jac
 
-    def world_to_pixel(self, rPNn, eta, return_jacobian: bool = False):
+    def world_to_pixel(self, rPNn: ArrayLike, eta: ArrayLike, return_jacobian: bool = False) \
+            -> np.ndarray | tuple[np.ndarray, PoseJacobians]:
         """Pixel(s) of world point(s) rPNn seen from the camera pose eta = [rCNn; Θnc].
 
         With ``return_jacobian`` returns ``(pixels, PoseJacobians)`` with ∂pixel/∂rPNn (``wrt_point``),
@@ -303,7 +281,8 @@ class Camera:
         return self._world_to_pixel(P, eta[:3], eta[3:], np.eye(3), np.zeros(3),
                                     boolean(return_jacobian, "return_jacobian"))
 
-    def body_to_pixel(self, rPNn, eta_body, return_jacobian: bool = False):
+    def body_to_pixel(self, rPNn: ArrayLike, eta_body: ArrayLike, return_jacobian: bool = False) \
+            -> np.ndarray | tuple[np.ndarray, PoseJacobians]:
         """Pixel(s) of world point(s) rPNn seen from the camera mounted on a body at pose
         eta_body = [rBNn; Θnb] (uses ``r_cb_b`` and ``R_bc``).
 
@@ -312,16 +291,17 @@ class Camera:
         """
         P = _points(rPNn, "rPNn")
         eta_body = _pose(eta_body, "eta_body")
-        return self._world_to_pixel(P, eta_body[:3], eta_body[3:], self.R_bc.T, self.r_cb_b, return_jacobian)
+        return self._world_to_pixel(P, eta_body[:3], eta_body[3:], self.R_bc.T, self.r_cb_b,
+                                    boolean(return_jacobian, "return_jacobian"))
 
-    def camera_pose_from_body(self, eta_body) -> np.ndarray:
+    def camera_pose_from_body(self, eta_body: ArrayLike) -> np.ndarray:
         """Camera pose [rCNn; Θnc] from the body pose [rBNn; Θnb]: rCNn = rBNn + Rnb rCBb, Rnc = Rnb Rbc."""
         eta_body = _pose(eta_body, "eta_body")
         Rnb = rpy2rot(eta_body[3:])
         return np.concatenate([eta_body[:3] + Rnb @ self.r_cb_b, rot2rpy(Rnb @ self.R_bc)])
 
-    # -- inversion ---------------------------------------------------------------------------------------
-    def pixel_to_vector(self, pixels, strict: bool = True, tol: float = 1e-12, max_iter: int = 100) -> np.ndarray:
+    def pixel_to_vector(self, pixels: ArrayLike, strict: bool = True, tol: float = 1e-12,
+                        max_iter: int = 100) -> np.ndarray:
         """Unit vector(s) in {c} whose projection is the given pixel(s) ((2,) or (2, N) → (3,) or (3, N)).
 
         Exact inversion of the distortion model (``camera_inverse.undistort``), confined to the invertible range
@@ -344,7 +324,6 @@ class Camera:
         V /= np.linalg.norm(V, axis=0)
         return V[:, 0] if Qp.ndim == 1 else V
 
-    # -- field of view -----------------------------------------------------------------------------------
     def fov_angles(self) -> FOVAngles:
         """Horizontal, vertical and diagonal FOV (radians) by exact inversion of the model.
 
@@ -368,7 +347,7 @@ class Camera:
         """atan(fold_radius): the largest off-axis angle (radians) for which the model is invertible."""
         return float(np.arctan(self.fold_radius))
 
-    def is_vector_within_fov(self, rPCc):
+    def is_vector_within_fov(self, rPCc: ArrayLike) -> bool | np.ndarray:
         """Whether camera-frame vector(s) are visible: z > 0, off-axis angle < :meth:`max_off_axis_angle`
         (beyond it the lens model folds back), and the pixel lies inside the image
         [−0.5, W − 0.5] × [−0.5, H − 0.5]. (3,) → bool; (3, N) → bool array (N,)."""
@@ -383,6 +362,6 @@ class Camera:
         inside &= (Q[0] >= -0.5) & (Q[0] <= self.width - 0.5) & (Q[1] >= -0.5) & (Q[1] <= self.height - 0.5)
         return bool(inside[0]) if single else inside
 
-    def is_world_within_fov(self, rPNn, eta):
+    def is_world_within_fov(self, rPNn: ArrayLike, eta: ArrayLike) -> bool | np.ndarray:
         """is_vector_within_fov(world_to_vector(rPNn, eta)) for the camera pose eta = [rCNn; Θnc]."""
         return self.is_vector_within_fov(self.world_to_vector(rPNn, eta))

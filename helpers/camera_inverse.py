@@ -6,12 +6,14 @@ inside its fold radius r_f (:func:`fold_radius`); :func:`undistort` solves disto
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 __all__ = ["fold_radius", "undistort"]
 
 
-def fold_radius(dist_coeffs, distort) -> float:
+def fold_radius(dist_coeffs: np.ndarray, distort: Callable) -> float:
     """Normalised radius r_f where the radial map r ↦ c(r²)·r stops increasing (∞ if it never does).
 
     Beyond r_f a wide-angle polynomial/rational model folds back (several radii give one pixel), so the
@@ -43,7 +45,8 @@ def fold_radius(dist_coeffs, distort) -> float:
     return lo
 
 
-def undistort(distort, tu, tv, rho_max, tol, max_iter):
+def undistort(distort: Callable, tu: np.ndarray, tv: np.ndarray, rho_max: float, tol: float,
+              max_iter: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(u, v, squared residual) with distort(u, v) = (tu, tv) and u² + v² < rho_max: damped Newton iterations
     for all points at once (the loop runs over iterations, never over points), started at (tu, tv) pulled
     inside the fold; a point without an exact preimage stops at the least-squares one (residual > tol²)."""

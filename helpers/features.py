@@ -1,22 +1,17 @@
 """Point features (corners) for data association — Lab 8 task 3a.
 
-A corner is a pixel whose neighbourhood has strong intensity gradients in two directions. With the image
-gradient g = (I_x, I_y) and a window w (a box of ``block_size`` × ``block_size`` pixels) the structure
-tensor is
+With the image gradient (I_x, I_y) and a ``block_size`` × ``block_size`` window w, the structure tensor is
 
-    M = Σ_w [[I_x², I_x I_y], [I_x I_y, I_y²]]      with eigenvalues λ1 ≥ λ2 ≥ 0.
+    M = Σ_w [[I_x², I_x I_y], [I_x I_y, I_y²]]      with eigenvalues λ1 ≥ λ2 ≥ 0,
 
-Two classic corner responses (both computed by OpenCV, vectorised over the whole image):
+and the corner response (OpenCV, over the whole image) is
 
-    Shi–Tomasi (minimum eigenvalue):  R = λ2                            (cv2.cornerMinEigenVal)
-    Harris:                           R = det M − k (tr M)² = λ1λ2 − k(λ1 + λ2)²   (cv2.cornerHarris)
+    Shi–Tomasi:  R = λ2                                          (cv2.cornerMinEigenVal)
+    Harris:      R = det M − k (tr M)² = λ1λ2 − k(λ1 + λ2)²      (cv2.cornerHarris)
 
-A feature is a pixel whose response exceeds ``threshold × max(R)`` (a relative quality level, as in
-cv2.goodFeaturesToTrack). Optionally the response map is smoothed by a Gaussian (``smoothing``) and only local
-maxima within a (2·nms_radius + 1)² window are kept (non-maximum suppression; the lab's detector had none,
-so ``nms_radius=0`` is the default). Features are returned sorted by **descending score**, ties broken by
-raster order (row, then column), and capped at ``max_features`` (the lab's ``maxNumFeatures = 10000``).
-Coordinates are integer pixels, OpenCV convention: x to the right, y down, origin at the top-left pixel.
+A feature is a pixel with R > ``threshold`` · max(R), optionally after Gaussian smoothing of R and non-maximum
+suppression (the lab had neither). Features are sorted by descending score (ties in raster order) and capped at
+``max_features``. Coordinates are integer pixels: x to the right, y down, origin at the top-left pixel.
 """
 from __future__ import annotations
 
@@ -25,7 +20,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .validation import finite_number, integer
+from .validation import finite_number, integer, nonnegative_number, one_of
 
 __all__ = ["Features", "corner_response", "detect_features", "METHODS"]
 
@@ -45,7 +40,7 @@ class Features:
     y: np.ndarray
     method: str = "shi-tomasi"
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         arrays = (self.score, self.x, self.y)
         if not all(isinstance(a, np.ndarray) and a.ndim == 1 for a in arrays) or len({a.size for a in arrays}) != 1:
             raise ValueError(f"score, x and y must be 1-D arrays of one length, got shapes "
@@ -65,7 +60,7 @@ class Features:
         return f"Features(m={len(self)}, method={self.method!r})"
 
 
-def _as_gray_float(image) -> np.ndarray:
+def _as_gray_float(image: np.ndarray) -> np.ndarray:
     if not isinstance(image, np.ndarray):
         raise ValueError(f"image must be a numpy array, got {type(image).__name__}")
     if image.ndim == 3 and image.shape[2] in (3, 4):
@@ -86,15 +81,14 @@ def _as_gray_float(image) -> np.ndarray:
     raise ValueError(f"image dtype must be uint8, float32 or float64, got {image.dtype}")
 
 
-def corner_response(image, method: str = "shi-tomasi", block_size: int = 5, aperture_size: int = 3,
+def corner_response(image: np.ndarray, method: str = "shi-tomasi", block_size: int = 5, aperture_size: int = 3,
                     harris_k: float = 0.04) -> np.ndarray:
     """Corner response map R (float32, same height × width as ``image``), computed by OpenCV.
 
     ``image`` is uint8 (scaled to [0, 1]) or float gray, or uint8 BGR. ``method`` is ``"shi-tomasi"``
     (R = λ2, the smaller eigenvalue of the structure tensor) or ``"harris"`` (R = det M − k (tr M)²).
     """
-    if not isinstance(method, str) or method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    one_of(method, "method", METHODS)
     block_size = integer(block_size, "block_size", minimum=2)
     if isinstance(aperture_size, bool) or aperture_size not in (1, 3, 5, 7):
         raise ValueError(f"aperture_size must be 1, 3, 5 or 7, got {aperture_size!r}")
@@ -109,7 +103,7 @@ def corner_response(image, method: str = "shi-tomasi", block_size: int = 5, aper
     return cv2.cornerHarris(gray, int(block_size), int(aperture_size), float(harris_k))
 
 
-def detect_features(image, max_features: int = 10000, method: str = "shi-tomasi", threshold: float = 0.01,
+def detect_features(image: np.ndarray, max_features: int = 10000, method: str = "shi-tomasi", threshold: float = 0.01,
                     block_size: int = 5, aperture_size: int = 3, harris_k: float = 0.04,
                     nms_radius: int = 0, smoothing: float = 0.0, border: int = 4) -> Features:
     """Detect corner features: pixels with response R > threshold · max(R), strongest first.
@@ -134,17 +128,15 @@ def detect_features(image, max_features: int = 10000, method: str = "shi-tomasi"
     Features with ``score``, ``x``, ``y`` (int) sorted by descending score (ties in raster order).
     An image without corners (e.g. constant) gives an empty ``Features`` (m = 0), not an error.
     """
-    if isinstance(max_features, bool) or not isinstance(max_features, (int, np.integer)) or max_features < 1:
-        raise ValueError(f"max_features must be a positive integer, got {max_features!r}")
+    max_features = integer(max_features, "max_features", minimum=1)
     if not 0.0 <= finite_number(threshold, "threshold") < 1.0:
         raise ValueError(f"threshold must be a relative level in [0, 1), got {threshold!r}")
     nms_radius = integer(nms_radius, "nms_radius", minimum=0)
     border = integer(border, "border", minimum=0)
-    if not finite_number(smoothing, "smoothing") >= 0:
-        raise ValueError(f"smoothing must be a non-negative number of pixels, got {smoothing!r}")
+    smoothing = nonnegative_number(smoothing, "smoothing")
     R = corner_response(image, method, block_size, aperture_size, harris_k)
     if smoothing > 0:
-        R = cv2.GaussianBlur(R, (0, 0), float(smoothing))
+        R = cv2.GaussianBlur(R, (0, 0), smoothing)
     h, w = R.shape
     if 2 * border >= min(h, w):
         raise ValueError(f"border={border} leaves no pixels in an image of shape {(h, w)}")

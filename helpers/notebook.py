@@ -1,14 +1,8 @@
-"""Notebook support: prose-guarding checks that respect a student's parameters, and showing real source code.
+"""Notebook support: checks of the prose that respect a student's parameters, and showing the running code.
 
-Every notebook opens with one parameter cell (the knobs a student would turn) and ends it with::
-
-    claims = Claims(globals(), SEED=0, CLUTTER=5)      # the defaults the prose was written for
-
-``claims.check(condition, "what the text says")`` then guards each sentence of the prose: at the default
-parameters a false claim raises (so a green test run means the text is true); after a student changed a
-parameter it prints a note instead of crashing, e.g. "note (your parameters): no longer holds: JCBB's recall
-is above 0.9". ``show_source(obj)`` displays the current source of a function, method or class, so the notebook
-shows the code that runs rather than a copy that can drift.
+Every notebook's parameter cell ends with ``claims = Claims(globals(), SEED=0, CLUTTER=5)`` (the defaults the prose
+was written for); ``claims.check(condition, "what the text says")`` raises at the defaults when the claim is false
+and prints a note once a student changed a parameter. ``show_source(obj)`` displays the source that runs.
 """
 from __future__ import annotations
 
@@ -16,8 +10,6 @@ import inspect
 import math
 import numbers
 import textwrap
-
-import numpy as np
 
 __all__ = ["Claims", "show_source", "source_lines"]
 
@@ -40,7 +32,7 @@ class Claims:
     **defaults : each parameter's name and the default value the prose was written for
     """
 
-    def __init__(self, namespace: dict, **defaults):
+    def __init__(self, namespace: dict, **defaults: object) -> None:
         if not isinstance(namespace, dict):
             raise ValueError(f"namespace must be the notebook's globals() dict, got {type(namespace).__name__}")
         if not defaults:
@@ -58,18 +50,15 @@ class Claims:
         """True when every parameter has the value the prose was written for."""
         return not self.changed
 
-    def check(self, condition, claim: str) -> bool:
-        """Guard one claim of the text. Returns the condition as a bool.
+    def check(self, condition: object, claim: str) -> bool:
+        """Guard one claim of the text; returns the condition as a bool.
 
         At the defaults a false claim raises AssertionError naming it; with changed parameters it prints
-        ``note (your parameters): no longer holds: <claim>`` once and returns False. ``condition`` is one truth
-        value (Python truthiness); a numpy array of several values raises ValueError.
+        ``note (your parameters …): no longer holds: <claim>`` once and returns False. ``condition`` is one truth
+        value (numpy raises ValueError for an array of several).
         """
         if not isinstance(claim, str) or not claim:
             raise ValueError("claim must be a non-empty string saying what the text claims")
-        if isinstance(condition, np.ndarray) and condition.size != 1:
-            raise ValueError(f"condition must be one truth value (e.g. np.all(...) of an array), got an array of "
-                             f"shape {condition.shape}")
         ok = bool(condition)
         if not ok:
             if self.at_defaults:
@@ -79,12 +68,12 @@ class Claims:
                 print(f"note (your parameters {', '.join(self.changed)}): no longer holds: {claim}")
         return ok
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         state = "defaults" if self.at_defaults else f"changed: {', '.join(self.changed)}"
         return f"Claims({state}; {len(self.failed)} claim(s) no longer hold)"
 
 
-def source_lines(obj) -> str:
+def source_lines(obj: object) -> str:
     """The source text of a function, method or class, dedented (raises ValueError if it has none)."""
     target = inspect.unwrap(obj)
     if isinstance(target, (staticmethod, classmethod)):
@@ -96,13 +85,12 @@ def source_lines(obj) -> str:
     return textwrap.dedent(text)
 
 
-def show_source(obj, start: str | None = None, stop: str | None = None):
+def show_source(obj: object, start: str | None = None, stop: str | None = None) -> None:
     """Display the source of ``obj`` (syntax-highlighted in Jupyter, plain text elsewhere).
 
-    ``start`` / ``stop``: show only the lines from the first one containing ``start`` up to (excluding) the
-    first later one containing ``stop`` — e.g. one method's body part that a coursework question edits. Either
-    may be None (from the first line / to the end); a string that no line contains raises ValueError (a typo
-    would otherwise show the wrong lines silently).
+    ``start`` / ``stop``: show only the lines from the first one containing ``start`` up to (excluding) the first
+    later one containing ``stop``; None means from the first line / to the end. A string that no line contains
+    raises ValueError.
     """
     for arg, value in (("start", start), ("stop", stop)):
         if value is not None and (not isinstance(value, str) or not value):
@@ -125,6 +113,5 @@ def show_source(obj, start: str | None = None, stop: str | None = None):
         from IPython.display import Code, display
     except ImportError:  # outside Jupyter
         print(header + "\n" + text)
-        return None
+        return
     display(Code(header + "\n" + text, language="python"))
-    return None

@@ -1,26 +1,19 @@
 """Peer results recorded from GTSAM and g2o, so that notebooks show them whether or not the peers are installed.
 
-GTSAM has no Windows wheel, so the workbook does not need the peer libraries to run. Notebook 09 compares the
-workbook's optimiser with results that ``benchmarks/record_peers.py`` recorded with the pinned peer versions
-(``environment-peers.txt``) and stored in ``data/peer_results.json`` (numbers) and ``data/peer_victoria_park.npz``
-(the Victoria Park state at which GTSAM's pose covariances were evaluated, and those covariances). Where the peers
-are installed, ``tests/test_recorded_peers.py`` re-runs them and checks that the recording still holds.
-
-The file layout (JSON)::
+``benchmarks/record_peers.py`` runs the pinned peer versions (``environment-peers.txt``) and stores the numbers in
+``data/peer_results.json`` and the Victoria Park state with GTSAM's pose covariances in
+``data/peer_victoria_park.npz``; ``tests/test_recorded_peers.py`` re-runs the peers where installed. JSON layout::
 
     recorded_with: {command, date, gtsam, g2opy, numpy, python, machine}
     <dataset>:     {<solver>: {solver, config, iterations, chi2, chi2_history, time_s, marginals_time_s}}
-    convergence:   {recorded_with: {...},
-                    <dataset>: {<run>: {the same fields}}}     one entry per dataset of helpers.datasets.DATASETS
+    convergence:   {recorded_with: {...}, <dataset>: {<run>: {the same fields}}}   (every dataset of DATASETS)
 
-The ``<dataset>`` entries (W10000, Victoria Park) are the runs notebook 09 shows. ``convergence`` holds GTSAM's LM on
-every shipped dataset (``benchmarks/record_peers.py --convergence``): run "GTSAM" with its default parameters, and
-"GTSAM optimum" run to convergence (tolerances 1e−15), whose χ² is the optimum ``tests/test_graph_convergence.py``
-holds the default ``optimize()`` to — except W20000, whose χ² still falls after 1000 GTSAM iterations: there
-"GTSAM 200 iterations" (tolerances 0) is the reference instead.
-
-χ² values are g2o's / the workbook's Σ eᵀΩe (GTSAM's error × 2); times are wall seconds on the recording machine.
+``convergence`` holds GTSAM's LM on every shipped dataset: "GTSAM" (default parameters) and "GTSAM optimum"
+(tolerances 1e−15; for W20000 "GTSAM 200 iterations"). χ² values are Σ eᵀΩe (GTSAM's error × 2); times are wall
+seconds on the recording machine.
 """
+from __future__ import annotations
+
 import json
 
 import numpy as np

@@ -16,34 +16,23 @@ Derivatives (S(·) the cross-product matrix, e1, e2, e3 the unit axes):
 
     ∂R/∂φ = Rz Ry Rx S(e1),   ∂R/∂θ = Rz Ry S(e2) Rx,   ∂R/∂ψ = Rz S(e3) Ry Rx.
 
-Every function is vectorised: an angle may be a scalar (→ 3×3) or an array of shape (...) (→ (..., 3, 3));
-Euler-angle triples are (3,) or (3, N) (→ (3, 3) or (N, 3, 3)).
+Vectorised: an angle may be a scalar (→ 3×3) or an array of shape (...) (→ (..., 3, 3)); Euler-angle triples
+are (3,) or (3, N) (→ (3, 3) or (N, 3, 3)).
 """
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .validation import float_array
 
-__all__ = [
-    "rotx",
-    "roty",
-    "rotz",
-    "rpy2rot",
-    "rot2rpy",
-    "rpy2rot_derivatives",
-]
+__all__ = ["rotx", "roty", "rotz", "rpy2rot", "rot2rpy", "rpy2rot_derivatives"]
 
 
-def _angle(a, name):
+def _elementary(a: ArrayLike, axis: int, name: str, derivative: bool):
     a = float_array(a, name)
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{name} must be finite, got {a!r}")
-    return a
-
-
-def _elementary(a, axis: int, name: str, derivative: bool):
-    a = _angle(a, name)
     c, s = np.cos(a), np.sin(a)
     R = np.zeros(a.shape + (3, 3))
     i, j = [(1, 2), (0, 2), (0, 1)][axis]
@@ -64,22 +53,22 @@ def _elementary(a, axis: int, name: str, derivative: bool):
     return R, dR
 
 
-def rotx(phi, return_derivative: bool = False):
+def rotx(phi: ArrayLike, return_derivative: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Rx(φ); with ``return_derivative`` also dRx/dφ. Scalar → (3, 3); array (...) → (..., 3, 3)."""
     return _elementary(phi, 0, "phi", return_derivative)
 
 
-def roty(theta, return_derivative: bool = False):
+def roty(theta: ArrayLike, return_derivative: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Ry(θ); with ``return_derivative`` also dRy/dθ."""
     return _elementary(theta, 1, "theta", return_derivative)
 
 
-def rotz(psi, return_derivative: bool = False):
+def rotz(psi: ArrayLike, return_derivative: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Rz(ψ); with ``return_derivative`` also dRz/dψ."""
     return _elementary(psi, 2, "psi", return_derivative)
 
 
-def _rpy(Theta):
+def _rpy(Theta: ArrayLike) -> np.ndarray:
     Theta = float_array(Theta, "Theta")
     if Theta.ndim not in (1, 2) or Theta.shape[0] != 3:
         raise ValueError(f"Theta must have shape (3,) or (3, N) (roll, pitch, yaw), got {Theta.shape}")
@@ -88,13 +77,13 @@ def _rpy(Theta):
     return Theta
 
 
-def rpy2rot(Theta) -> np.ndarray:
+def rpy2rot(Theta: ArrayLike) -> np.ndarray:
     """R = Rz(ψ) Ry(θ) Rx(φ) for Θ = [φ, θ, ψ]; Θ (3,) → (3, 3), Θ (3, N) → (N, 3, 3)."""
     Theta = _rpy(Theta)
     return rotz(Theta[2]) @ roty(Theta[1]) @ rotx(Theta[0])
 
 
-def rpy2rot_derivatives(Theta):
+def rpy2rot_derivatives(Theta: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(R, dR/dφ, dR/dθ, dR/dψ) for Θ = [φ, θ, ψ], each (3, 3) (or (N, 3, 3) for Θ of shape (3, N)).
 
     ∂R/∂φ = Rz Ry dRx,  ∂R/∂θ = Rz dRy Rx,  ∂R/∂ψ = dRz Ry Rx  (dRx = Rx S(e1) etc.).
@@ -107,7 +96,7 @@ def rpy2rot_derivatives(Theta):
     return RzRy @ Rx, RzRy @ dRx, Rz @ dRy @ Rx, dRz @ Ry @ Rx
 
 
-def rot2rpy(R) -> np.ndarray:
+def rot2rpy(R: ArrayLike) -> np.ndarray:
     """Roll-pitch-yaw angles of a rotation matrix: (3, 3) → (3,), (N, 3, 3) → (3, N).
 
     φ = atan2(R21, R22), θ = atan2(−R20, hypot(R21, R22)), ψ = atan2(R10, R00). The result satisfies

@@ -1,27 +1,20 @@
 """The lab scene, rendered: a chessboard on a self-similar textured plane seen through the calibrated camera.
 
-The Lab 8 demo photograph is not available, so the workbook renders its own. The world frame {n} is the
-chessboard frame: origin at the first inner corner, x along the 10-corner direction, y along the 7-corner
-direction, the board in the plane z = 0, z pointing into the plane (away from the camera). On that plane:
+The Lab 8 demo photograph is not available, so the workbook renders its own. The world frame {n} is the chessboard
+frame: origin at the first inner corner, x along the 10-corner direction, y along the 7-corner direction, the board
+in the plane z = 0, z pointing away from the camera. On that plane: a 10 × 7-inner-corner chessboard (squares of
+22 mm) on a white sheet; elsewhere fractal value noise (six octaves, 1.5 mm … 48 mm) through a soft threshold, with
+thousands of corners; fiducial stickers (a 2 × 2 checker) on the lab landmarks off the board, a floating card for
+landmark 8 (0.148 m in front of the plane); optional grey "occluder" squares.
 
-  * a 10 × 7-inner-corner chessboard (11 × 8 squares of 22 mm) on a white sheet with a 14 mm margin;
-  * everywhere else a self-similar texture: fractal value noise (six octaves, wavelengths 1.5 mm … 48 mm,
-    each randomly rotated) through a soft threshold, blobs and speckle of every size — thousands of corners;
-  * fiducial stickers (a 2 × 2 checker of 11 mm squares on a white 36 mm square) on the lab landmarks that
-    lie on the plane off the board, so every landmark has a true corner (landmarks 5 and 6 are board
-    corners); landmark 8 lies 0.148 m in front of the plane and gets a floating 40 mm card with the checker;
-  * optional blank grey "occluder" squares that hide landmarks.
+Rendering, vectorised over all pixels: (1) pixel → ray: the lens model is inverted exactly every 16 px and
+(x/z, y/z) interpolated bicubically (``scene_truth.ray_interpolation_error``); (2) ray → plane: d = Rnc [x/z, y/z, 1]ᵀ
+from rCNn meets z = z₀ at t = (z₀ − r_z)/d_z; (3) albedo there, each texture octave faded out as the pixel's
+footprint approaches its wavelength, the sharp-edged objects supersampled; (4) shading, vignetting, a mild blur,
+seeded sensor noise, uint8. The same seed gives the same bytes.
 
-Rendering, vectorised over all pixels: (1) pixel → ray: the lens model is inverted exactly
-(``Camera.pixel_to_vector``) every 16 px and (x/z, y/z) interpolated bicubically (error far below 0.01 px
-within 90 % of the model's largest image radius, ``helpers.scene_truth.ray_interpolation_error``; pixels
-near the lens fold are rendered dark); (2) ray → plane: d = Rnc [x/z, y/z, 1]ᵀ from rCNn meets z = z₀ at
-t = (z₀ − r_z)/d_z; (3) albedo there, each texture octave faded out as the pixel's footprint on the plane
-approaches its wavelength (analytic anti-aliasing), the sharp-edged objects supersampled; (4) shading
-(illumination gradient, vignetting), a mild Gaussian blur, seeded Gaussian sensor noise, uint8.
-
-The same seed gives the same bytes. ``recover_pose`` repeats the lab's pose recovery: findChessboardCorners
-→ cornerSubPix → solvePnP with the 12-coefficient model, Rnc = Rcnᵀ, rCNn = −Rcnᵀ t, Θnc = rot2rpy(Rnc).
+``recover_pose`` repeats the lab's pose recovery: findChessboardCorners → cornerSubPix → solvePnP with the
+12-coefficient model, Rnc = Rcnᵀ, rCNn = −Rcnᵀ t, Θnc = rot2rpy(Rnc).
 """
 from __future__ import annotations
 
@@ -29,11 +22,13 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.interpolate import RectBivariateSpline
 
+from .camera import Camera
 from .rotation import rot2rpy, rpy2rot
-from .state_slam import LAB_DEMO_CAMERA_POSE, lab_demo_state
-from .validation import finite_number, float_array, integer, positive_number
+from .state_slam import LAB_DEMO_CAMERA_POSE, _check_camera, lab_demo_state
+from .validation import finite_vector, float_array, integer, nonnegative_number, positive_number, rng_seed
 
 __all__ = ["REFERENCE_POSE", "LAB_LANDMARKS", "PATTERN_SIZE", "SQUARE_SIZE", "TEXTURE_WAVELENGTHS", "RenderedScene",
            "board_points", "render_lab_scene", "find_board_corners", "recover_pose", "ChessboardNotFoundError"]
@@ -78,7 +73,7 @@ class RenderedScene:
     occluder_half: float = 0.03
 
 
-def board_points(pattern_size=PATTERN_SIZE, square_size=SQUARE_SIZE) -> np.ndarray:
+def board_points(pattern_size: tuple[int, int] = PATTERN_SIZE, square_size: float = SQUARE_SIZE) -> np.ndarray:
     """Inner-corner positions (j·a, i·a, 0) for rows i and columns j, row-major, shape (3, nx·ny)."""
     nx, ny = _check_pattern(pattern_size)
     square_size = positive_number(square_size, "square_size")
@@ -86,27 +81,14 @@ def board_points(pattern_size=PATTERN_SIZE, square_size=SQUARE_SIZE) -> np.ndarr
     return np.vstack([j.ravel() * square_size, i.ravel() * square_size, np.zeros(nx * ny)])
 
 
-# -- validation ----------------------------------------------------------------------------------
-def _check_camera(camera):
-    if not all(hasattr(camera, a) for a in ("K", "dist_coeffs", "image_size", "pixel_to_vector", "world_to_pixel")):
-        raise ValueError(f"camera must be a helpers.camera.Camera, got {type(camera).__name__}")
-
-
-def _check_pattern(pattern_size):
+def _check_pattern(pattern_size: tuple[int, int]) -> tuple[int, int]:
     """(nx, ny): inner corners per row and column, each an integer ≥ 3 (OpenCV's chessboard detector)."""
     if not isinstance(pattern_size, (tuple, list, np.ndarray)) or len(pattern_size) != 2:
         raise ValueError(f"pattern_size must be (nx, ny) inner corners, got {pattern_size!r}")
     return tuple(integer(n, "pattern_size", minimum=3) for n in pattern_size)
 
 
-def _check_pose(pose, name="pose"):
-    pose = float_array(pose, name).ravel()
-    if pose.shape != (6,) or not np.all(np.isfinite(pose)):
-        raise ValueError(f"{name} must be a finite camera pose [rCNn (3); Θnc (3)], got shape {pose.shape}")
-    return pose
-
-
-def _check_points(P, name, rows):
+def _check_points(P: ArrayLike, name: str, rows: int) -> np.ndarray:
     P = float_array(P, name)
     if P.ndim == 1 and P.size == 0:
         P = P.reshape(rows, 0)
@@ -115,7 +97,6 @@ def _check_points(P, name, rows):
     return P
 
 
-# -- texture (procedural, vectorised over all samples) -------------------------------------------
 def _smoothstep01(x):
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x)
@@ -185,7 +166,6 @@ def _sharp_albedo(X, Y, Xc, Yc, background, plane_markers, occluders, occluder_h
     return out
 
 
-# -- rendering -----------------------------------------------------------------------------------
 def _ray_splines(camera, width, height):
     """Bicubic splines (row, column) ↦ x/z and ↦ y/z of the exact inverse lens model, fitted on nodes every
     _GRID_STEP px (the model is inverted exactly there, by Camera.pixel_to_vector)."""
@@ -212,7 +192,7 @@ def _normalised_rays(camera, width, height):
     yn = spline_y(pv, pu)
     # beyond the fold: distorted radius larger than the largest radius the model can produce
     fx, fy, cx, cy = camera.K[0, 0], camera.K[1, 1], camera.K[0, 2], camera.K[1, 2]
-    rf = getattr(camera, "fold_radius", np.inf)
+    rf = camera.fold_radius
     dark = np.zeros((height, width), bool)
     if np.isfinite(rf):
         rd_max = np.hypot(*camera.vector_to_pixel(np.array([rf, 0.0, 1.0])) - np.array([cx, cy])) / fx
@@ -240,23 +220,6 @@ def _plane_intersector(pose):
         return r[0] + t * dx, r[1] + t * dy
 
     return intersect
-
-
-def _check_render_arguments(seed, markers, occluders, occluder_half, supersample, blur_sigma, noise_sigma):
-    """Validated (markers (3, k), occluders (2, q)) with the defaults filled in; ValueError names the argument."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    markers = LAB_LANDMARKS[[0, 1, 2, 3, 4, 7, 8]].T if markers is None else _check_points(markers, "markers", 3)
-    occluders = np.zeros((2, 0)) if occluders is None else _check_points(occluders, "occluders", 2)
-    if not finite_number(occluder_half, "occluder_half") > 0:
-        raise ValueError(f"occluder_half must be a positive length in metres, got {occluder_half!r}")
-    if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 8:
-        raise ValueError(f"supersample must be an integer in 1..8, got {supersample!r}")
-    if finite_number(blur_sigma, "blur_sigma") < 0:
-        raise ValueError(f"blur_sigma must be a non-negative number of pixels, got {blur_sigma!r}")
-    if finite_number(noise_sigma, "noise_sigma") < 0:
-        raise ValueError(f"noise_sigma must be a non-negative number of grey levels, got {noise_sigma!r}")
-    return markers, occluders
 
 
 def _sharp_objects(albedo, intersect, xn, yn, X, Y, Xu, Xv, Yu, Yv, plane_markers, occluders, occluder_half,
@@ -307,9 +270,9 @@ def _expose(camera, albedo, X, Y, dark, W, H):
     return img
 
 
-def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=None,
-                     occluder_half: float = 0.03, card: bool = True, supersample: int = 4,
-                     blur_sigma: float = 0.6, noise_sigma: float = 1.5) -> RenderedScene:
+def render_lab_scene(camera: Camera, pose: ArrayLike | None = None, seed: int = 0, markers: ArrayLike | None = None,
+                     occluders: ArrayLike | None = None, occluder_half: float = 0.03, card: bool = True,
+                     supersample: int = 4, blur_sigma: float = 0.6, noise_sigma: float = 1.5) -> RenderedScene:
     """Render the lab scene at the camera's resolution (1920 × 1440 for the lab camera).
 
     Parameters
@@ -327,9 +290,14 @@ def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=N
     noise_sigma : sensor noise standard deviation in grey levels (≥ 0).
     """
     _check_camera(camera)
-    pose = REFERENCE_POSE.copy() if pose is None else _check_pose(pose)
-    markers, occluders = _check_render_arguments(seed, markers, occluders, occluder_half, supersample,
-                                                 blur_sigma, noise_sigma)
+    pose = REFERENCE_POSE.copy() if pose is None else finite_vector(pose, "pose", 6)
+    seed = integer(rng_seed(seed), "seed")
+    markers = LAB_LANDMARKS[[0, 1, 2, 3, 4, 7, 8]].T if markers is None else _check_points(markers, "markers", 3)
+    occluders = np.zeros((2, 0)) if occluders is None else _check_points(occluders, "occluders", 2)
+    occluder_half = positive_number(occluder_half, "occluder_half")
+    supersample = integer(supersample, "supersample", minimum=1, below=9)
+    blur_sigma = nonnegative_number(blur_sigma, "blur_sigma")
+    noise_sigma = nonnegative_number(noise_sigma, "noise_sigma")
     on_plane = markers[2] == 0.0
     plane_markers = markers[:2, on_plane]
     card_markers = markers[:, ~on_plane] if card else np.zeros((3, 0))
@@ -361,8 +329,7 @@ def render_lab_scene(camera, pose=None, seed: int = 0, markers=None, occluders=N
                          occluder_half=float(occluder_half))
 
 
-# -- the lab's pose recovery ---------------------------------------------------------------------
-def find_board_corners(image, pattern_size=PATTERN_SIZE) -> np.ndarray:
+def find_board_corners(image: np.ndarray, pattern_size: tuple[int, int] = PATTERN_SIZE) -> np.ndarray:
     """Inner chessboard corners (2, nx·ny), sub-pixel refined, in OpenCV's order (row-major from the first
     corner). Raises ChessboardNotFoundError when the board is not found."""
     if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim not in (2, 3) \
@@ -380,7 +347,8 @@ def find_board_corners(image, pattern_size=PATTERN_SIZE) -> np.ndarray:
     return corners.reshape(-1, 2).T.astype(float)
 
 
-def recover_pose(image, camera, pattern_size=PATTERN_SIZE, square_size=SQUARE_SIZE):
+def recover_pose(image: np.ndarray, camera: Camera, pattern_size: tuple[int, int] = PATTERN_SIZE,
+                 square_size: float = SQUARE_SIZE) -> tuple[np.ndarray, np.ndarray]:
     """Camera pose [rCNn; Θnc] from the chessboard, as the lab does it.
 
     corners = findChessboardCorners + cornerSubPix; (rvec, t) = solvePnP(board points, corners, K, 12

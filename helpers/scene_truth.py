@@ -8,19 +8,22 @@ renderer's pixel→ray interpolation is.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from .scene import CARD_HALF, STICKER_HALF, _check_camera, _check_pose, _plane_intersector, _ray_splines
-from .validation import finite_number, float_array, rng_seed
+from .camera import Camera
+from .scene import CARD_HALF, STICKER_HALF, _plane_intersector, _ray_splines
+from .state_slam import _check_camera
+from .validation import finite_number, finite_vector, integer, rng_seed
 
 __all__ = ["pixel_to_plane", "fiducial_half_size", "ray_interpolation_error"]
 
 
-def pixel_to_plane(camera, pose, pixels, z0: float = 0.0) -> np.ndarray:
+def pixel_to_plane(camera: Camera, pose: ArrayLike, pixels: ArrayLike, z0: float = 0.0) -> np.ndarray:
     """World point(s) where the ray(s) of pixel(s) ((2,) or (2, N)) from the camera at ``pose`` = [rCNn; Θnc]
     meet the plane z = ``z0`` (the renderer's ray–plane intersection, rays from ``camera.pixel_to_vector``).
     Rays that never reach the plane give NaN. Returns (3,) or (3, N)."""
     _check_camera(camera)
-    pose = _check_pose(pose)
+    pose = finite_vector(pose, "pose", 6)
     z0 = finite_number(z0, "z0")
     V = camera.pixel_to_vector(pixels, strict=False)                  # z > 0: inside the lens fold
     X, Y = _plane_intersector(pose)(V[0] / V[2], V[1] / V[2], z0)
@@ -28,28 +31,25 @@ def pixel_to_plane(camera, pose, pixels, z0: float = 0.0) -> np.ndarray:
     return np.where(np.isfinite(P[0]), P, np.nan)
 
 
-def fiducial_half_size(marker) -> float:
+def fiducial_half_size(marker: ArrayLike) -> float:
     """Half-size (m) of the white square that carries the checker of a fiducial at world point ``marker``:
     a sticker on the plane (z = 0) or a floating card (z < 0)."""
-    marker = float_array(marker, "marker")
-    if marker.shape != (3,) or not np.all(np.isfinite(marker)):
-        raise ValueError(f"marker must be a finite world point of shape (3,), got shape {marker.shape}")
+    marker = finite_vector(marker, "marker", 3)
     return STICKER_HALF if marker[2] == 0.0 else CARD_HALF
 
 
-def ray_interpolation_error(camera, n_samples: int = 2000, seed: int = 0, inside: float = 0.9) -> float:
+def ray_interpolation_error(camera: Camera, n_samples: int = 2000, seed: int = 0, inside: float = 0.9) -> float:
     """Largest pixel error of the renderer's interpolated rays: at ``n_samples`` random sub-pixel positions
     (seeded) whose distorted radius is below ``inside`` × the largest radius the lens model produces, the
     interpolated ray is projected back with the exact model and compared with the pixel. Returns px."""
     _check_camera(camera)
-    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 1:
-        raise ValueError(f"n_samples must be a positive integer, got {n_samples!r}")
+    n_samples = integer(n_samples, "n_samples", minimum=1)
     seed = rng_seed(seed)
     if not 0 < finite_number(inside, "inside") <= 1:
         raise ValueError(f"inside must lie in (0, 1], got {inside!r}")
     W, H = camera.image_size
     fx, fy, cx, cy = camera.K[0, 0], camera.K[1, 1], camera.K[0, 2], camera.K[1, 2]
-    rf = getattr(camera, "fold_radius", np.inf)
+    rf = camera.fold_radius
     rd_max = np.hypot(*camera.distort(rf, 0.0)) if np.isfinite(rf) else np.inf
     rng = np.random.default_rng(seed)
     pts = rng.uniform([0.0, 0.0], [W - 1.0, H - 1.0], size=(4 * n_samples, 2)).T

@@ -10,22 +10,20 @@ from the body pose (eq 5) rCNn = rBNn + Rnb rCBb, Rnc = Rnb Rbc. Its Jacobian (e
 only in the columns of rBNn (6..8), Θnb (9..11) and r_j (12 + 3j .. 14 + 3j).
 
 Feature bundle (eqs 8–9) for a selection idx_landmarks = [j_0, j_1, …]: h = [h_{j_0}; h_{j_1}; …] (length 2k)
-and J = [∂h_{j_0}/∂x; ∂h_{j_1}/∂x; …] (2k × n): row pair k belongs to the k-th *selected* landmark, not to
-its state index. All selected landmarks are projected in one vectorised call.
-
-The predicted densities are first-order (affine) transforms of the state density through h (by QR, see
-``Gaussian.transform``); the 2023 lab uses them without measurement noise.
+and J = [∂h_{j_0}/∂x; ∂h_{j_1}/∂x; …] (2k × n): row pair k belongs to the k-th *selected* landmark. The predicted
+densities are first-order transforms of the state density through h (``Gaussian.transform``).
 """
 from __future__ import annotations
 
 import numbers
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .camera import Camera, ProjectionError
 from .gaussian import Gaussian
 from .rotation import rot2rpy, rpy2rot
-from .validation import float_array, index_list, integer
+from .validation import finite_vector, float_array, index_list, integer
 
 __all__ = ["StateSLAM", "lab_demo_state", "LAB_DEMO_CAMERA_POSE"]
 
@@ -39,7 +37,7 @@ _IDX_ANGLES = np.arange(9, 12)
 class StateSLAM:
     """SLAM state x = [ν(6); rBNn(3); Θnb(3); 3 per landmark] with density N(μ, SᵀS)."""
 
-    def __init__(self, density: Gaussian):
+    def __init__(self, density: Gaussian) -> None:
         if not isinstance(density, Gaussian):
             raise ValueError(f"density must be a Gaussian, got {type(density).__name__}")
         n = density.size
@@ -47,17 +45,19 @@ class StateSLAM:
             raise ValueError(f"density must have size 12 + 3·n_landmarks, got size {n}")
         self._density = density
 
-    # -- accessors -------------------------------------------------------------------------------------
     @property
     def density(self) -> Gaussian:
+        """The state density N(μ, SᵀS)."""
         return self._density
 
     @property
     def size(self) -> int:
+        """n = 12 + 3 n_L."""
         return self._density.size
 
     @property
     def number_landmarks(self) -> int:
+        """n_L."""
         return (self.size - 12) // 3
 
     @staticmethod
@@ -82,10 +82,15 @@ class StateSLAM:
         """Mean landmark positions, shape (3, n_L)."""
         return self._density.mean[12:].reshape(-1, 3).T
 
-    def _landmark_selection(self, idx_landmarks, name="idx_landmarks") -> np.ndarray:
+    def _landmark_selection(self, idx_landmarks: ArrayLike, name: str = "idx_landmarks") -> np.ndarray:
         return index_list(idx_landmarks, self.number_landmarks, name, kind="landmark ", distinct=True)
 
-    def _check_x(self, x):
+    def _one_landmark(self, j: int) -> np.ndarray:
+        if isinstance(j, bool) or not isinstance(j, numbers.Integral):
+            raise ValueError(f"j must be an integer landmark index, got {j!r}")
+        return self._landmark_selection([j], name="j")
+
+    def _check_x(self, x: ArrayLike | None) -> np.ndarray:
         if x is None:
             return self._density.mean
         x = float_array(x, "x")
@@ -93,8 +98,8 @@ class StateSLAM:
             raise ValueError(f"x must be a finite state vector of shape ({self.size},), got shape {x.shape}")
         return x
 
-    # -- feature prediction ------------------------------------------------------------------------------
-    def predict_feature_bundle(self, camera: Camera, idx_landmarks, x=None):
+    def predict_feature_bundle(self, camera: Camera, idx_landmarks: ArrayLike, x: ArrayLike | None = None) \
+            -> tuple[np.ndarray, np.ndarray]:
         """(h, J) of eqs (8)–(9) at the state x (default: the mean): h (2k,), J (2k, n).
 
         Row pair (2i, 2i+1) is the pixel of landmark idx_landmarks[i]; J is non-zero only in the body-pose
@@ -118,15 +123,12 @@ class StateSLAM:
         J[np.arange(k)[:, None, None], np.arange(2)[None, :, None], cols[:, None, :]] = jac.wrt_point
         return Q.T.reshape(-1), J.reshape(2 * k, self.size)
 
-    def predict_feature(self, camera: Camera, j, x=None):
+    def predict_feature(self, camera: Camera, j: int, x: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(h_j, J_j) of eqs (4) and (6) at the state x (default: the mean): h_j (2,), J_j (2, n)."""
-        if isinstance(j, bool) or not isinstance(j, numbers.Integral):
-            raise ValueError(f"j must be an integer landmark index, got {j!r}")
-        self._landmark_selection([j], name="j")
-        return self.predict_feature_bundle(camera, [j], x)
+        return self.predict_feature_bundle(camera, self._one_landmark(j), x)
 
-    def predict_feature_bundle_density(self, camera: Camera, idx_landmarks, noise: Gaussian | None = None) \
-            -> Gaussian:
+    def predict_feature_bundle_density(self, camera: Camera, idx_landmarks: ArrayLike,
+                                       noise: Gaussian | None = None) -> Gaussian:
         """Predicted density of the feature bundle (affine transform of the state density through h).
 
         ``noise``: None (the 2023 lab), a zero-mean size-2 Gaussian applied independently to every selected
@@ -145,22 +147,17 @@ class StateSLAM:
                 raise ValueError(f"noise must have size 2 or {2 * idx.size}, got {noise.size}")
         return self._density.transform(lambda x: self.predict_feature_bundle(camera, idx, x), noise=noise)
 
-    def predict_feature_density(self, camera: Camera, j, noise: Gaussian | None = None) -> Gaussian:
+    def predict_feature_density(self, camera: Camera, j: int, noise: Gaussian | None = None) -> Gaussian:
         """Predicted density of the feature of landmark j (size 2); ``noise`` optional, zero-mean, size 2."""
-        if isinstance(j, bool) or not isinstance(j, numbers.Integral):
-            raise ValueError(f"j must be an integer landmark index, got {j!r}")
-        self._landmark_selection([j], name="j")
-        return self.predict_feature_bundle_density(camera, [j], noise)
+        return self.predict_feature_bundle_density(camera, self._one_landmark(j), noise)
 
 
-def _check_camera(camera):
+def _check_camera(camera: Camera) -> None:
     if not isinstance(camera, Camera):
         raise ValueError(f"camera must be a helpers.camera.Camera, got {type(camera).__name__}")
 
 
-# ----------------------------------------------------------------------------------------------------
 # The Lab 8 demo state
-# ----------------------------------------------------------------------------------------------------
 _DEMO_LANDMARKS = np.array([
     [-0.2, 0.1, 0.0], [0.0, -0.3, 0.0], [0.0, 0.6, 0.0], [0.4, 0.6, 0.0], [0.4, -0.4, 0.0],
     [0.088, 0.066, 0.0], [0.022, 0.132, 0.0], [0.297, 0.0, 0.0], [0.29029, 0.09502, -0.14843]])
@@ -177,16 +174,14 @@ _DEMO_POSE_SQRT = np.array([
     [0.0, 0.0, 0.0, 0.0, 0.0, 0.002043219303]])
 
 
-def lab_demo_state(camera_pose=None) -> StateSLAM:
+def lab_demo_state(camera_pose: ArrayLike | None = None) -> StateSLAM:
     """The 39-dimensional demo state of Lab 8: ν = 0 with a zero square-root block, the body
     pose equal to the camera pose (rCBb = 0, Rbc = I, Θnb = rot2rpy(Rnc)), nine landmarks with diagonal
     square-root blocks, and the published 6 × 6 upper-triangular pose block.
 
     ``camera_pose`` defaults to :data:`LAB_DEMO_CAMERA_POSE`.
     """
-    pose = LAB_DEMO_CAMERA_POSE if camera_pose is None else float_array(camera_pose, "camera_pose")
-    if pose.shape != (6,) or not np.all(np.isfinite(pose)):
-        raise ValueError(f"camera_pose must be a finite vector of shape (6,), got shape {pose.shape}")
+    pose = LAB_DEMO_CAMERA_POSE if camera_pose is None else finite_vector(camera_pose, "camera_pose", 6)
     mu = np.concatenate([np.zeros(6), pose[:3], rot2rpy(rpy2rot(pose[3:])), _DEMO_LANDMARKS.ravel()])
     S = np.zeros((39, 39))
     S[6:12, 6:12] = _DEMO_POSE_SQRT

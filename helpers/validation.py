@@ -5,6 +5,8 @@ The bottom layer of ``helpers`` (with ``paths``): it imports only numpy, so any 
 from __future__ import annotations
 
 import numbers
+from collections.abc import Callable, Iterable
+from typing import Any
 
 import numpy as np
 
@@ -12,9 +14,15 @@ __all__ = ["integer", "positive_number", "finite_number", "nonnegative_number", 
            "index_list", "finite_vector", "feature_columns", "float_array", "rng_seed", "boolean", "one_of", "function"]
 
 
-def integer(value, name: str, minimum: int | None = None, below: int | None = None, allow_none: bool = False):
-    """``value`` as an int; bool, non-integers and values outside [``minimum``, ``below``) raise ValueError naming
-    ``name``. With ``allow_none`` None is accepted and returned as is."""
+def _real(value: Any) -> bool:
+    """Whether ``value`` is a real number (not a bool)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def integer(value: Any, name: str, minimum: int | None = None, below: int | None = None,
+            allow_none: bool = False) -> int | None:
+    """``value`` as an int in [``minimum``, ``below``); bool and non-integers raise ValueError naming ``name``.
+    With ``allow_none`` None is accepted and returned as is."""
     if value is None and allow_none:
         return None
     if type(value) is int and (minimum is None or value >= minimum) and (below is None or value < below):
@@ -31,36 +39,35 @@ def integer(value, name: str, minimum: int | None = None, below: int | None = No
     return int(value)
 
 
-def positive_number(value, name: str) -> float:
+def positive_number(value: Any, name: str) -> float:
     """``value`` as a float > 0 and finite; anything else raises ValueError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value <= 0:
+    if not _real(value) or not np.isfinite(value) or value <= 0:
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")
     return float(value)
 
 
-def finite_number(value, name: str) -> float:
+def finite_number(value: Any, name: str) -> float:
     """``value`` as a finite float; bool, non-numbers, NaN and ±inf raise ValueError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value):
+    if not _real(value) or not np.isfinite(value):
         raise ValueError(f"{name} must be a finite number, got {value!r}")
     return float(value)
 
 
-def nonnegative_number(value, name: str, what: str = "") -> float:
-    """``value`` as a finite float ≥ 0; anything else raises ValueError naming ``name`` (``what`` says what the
-    number is, e.g. "spurious detections per scan")."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value < 0:
+def nonnegative_number(value: Any, name: str, what: str = "") -> float:
+    """``value`` as a finite float ≥ 0 (``what`` says what the number is, in the message)."""
+    if not _real(value) or not np.isfinite(value) or value < 0:
         raise ValueError(f"{name} must be a finite number ≥ 0{f' ({what})' if what else ''}, got {value!r}")
     return float(value)
 
 
-def probability(value, name: str) -> float:
+def probability(value: Any, name: str) -> float:
     """``value`` as a float in [0, 1]; anything else raises ValueError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not 0.0 <= float(value) <= 1.0:
+    if not _real(value) or not 0.0 <= float(value) <= 1.0:
         raise ValueError(f"{name} must be a probability in [0, 1], got {value!r}")
     return float(value)
 
 
-def int_array(values, name: str) -> np.ndarray:
+def int_array(values: Any, name: str) -> np.ndarray:
     """``values`` as a 1-D int64 array; other shapes or non-integer dtypes raise ValueError naming ``name``."""
     arr = np.asarray(values)
     if arr.ndim != 1:
@@ -70,13 +77,12 @@ def int_array(values, name: str) -> np.ndarray:
     return arr.astype(np.int64)
 
 
-def index_list(values, n: int, name: str, kind: str = "", integral_floats: bool = False,
+def index_list(values: Any, n: int, name: str, kind: str = "", integral_floats: bool = False,
                distinct: bool = False) -> np.ndarray:
     """A non-empty selection of indices in [0, n) as a 1-D intp array (a scalar is a selection of one).
 
-    ``kind`` names what is indexed in the messages (e.g. ``"landmark "``); with ``integral_floats`` floats that
-    are whole numbers are accepted; with ``distinct`` an index may appear only once. Anything else raises
-    ValueError naming ``name``."""
+    ``kind`` names what is indexed in the messages (e.g. ``"landmark "``); with ``integral_floats`` whole-number
+    floats are accepted; with ``distinct`` an index may appear only once."""
     arr = np.asarray(values)
     if arr.ndim == 0:
         arr = arr.reshape(1)
@@ -95,9 +101,8 @@ def index_list(values, n: int, name: str, kind: str = "", integral_floats: bool 
     return arr.astype(np.intp)
 
 
-def finite_vector(values, name: str, size: int | None = None) -> np.ndarray:
-    """``values`` as a finite 1-D float array (of length ``size`` if given); anything else raises ValueError
-    naming ``name``."""
+def finite_vector(values: Any, name: str, size: int | None = None) -> np.ndarray:
+    """``values`` as a finite 1-D float array (of length ``size`` if given)."""
     x = float_array(values, name)
     if x.ndim != 1:
         raise ValueError(f"{name} must be a 1-D array, got shape {x.shape}")
@@ -108,10 +113,9 @@ def finite_vector(values, name: str, size: int | None = None) -> np.ndarray:
     return x
 
 
-def feature_columns(Y, name: str = "Y", allow_empty: bool = True) -> np.ndarray:
-    """Measured image features as a finite 2 × m float array, one feature (x, y pixels) per column.
-
-    m = 0 is accepted unless ``allow_empty`` is False. Anything else raises ValueError naming ``name``."""
+def feature_columns(Y: Any, name: str = "Y", allow_empty: bool = True) -> np.ndarray:
+    """Measured image features as a finite 2 × m float array, one feature (x, y pixels) per column (m = 0 only
+    with ``allow_empty``)."""
     Y = float_array(Y, name)
     if Y.ndim != 2 or Y.shape[0] != 2 or (Y.shape[1] == 0 and not allow_empty):
         least = 0 if allow_empty else 1
@@ -121,10 +125,9 @@ def feature_columns(Y, name: str = "Y", allow_empty: bool = True) -> np.ndarray:
     return Y
 
 
-def float_array(values, name: str) -> np.ndarray:
+def float_array(values: Any, name: str) -> np.ndarray:
     """``values`` (any shape) as a float ndarray, without copying a float array. Text, None, bools, complex
-    numbers and ragged or non-numeric sequences raise ValueError naming ``name`` (numpy would raise its own
-    conversion error, or silently turn None into NaN and "1.5" into 1.5)."""
+    numbers and ragged or non-numeric sequences raise ValueError naming ``name``."""
     if type(values) is np.ndarray and values.dtype == np.float64:
         return values                                   # the common case: nothing to convert
     if isinstance(values, np.ndarray) and values.dtype.kind in "iuf":
@@ -140,73 +143,41 @@ def float_array(values, name: str) -> np.ndarray:
     return raw.astype(float, copy=False)
 
 
-def broadcastable(**arrays) -> tuple:
-    """The common shape of the named arrays under numpy broadcasting; ValueError naming them when there is none
-    (``broadcastable(p=p_arr, nu=nu_arr)``)."""
-    try:
-        return np.broadcast_shapes(*(a.shape for a in arrays.values()))
-    except ValueError:
-        shapes = ", ".join(f"{name} {a.shape}" for name, a in arrays.items())
-        raise ValueError(f"{' and '.join(arrays)} must broadcast to a common shape, got {shapes}") from None
-
-
-def same_setting(value, default) -> bool:
-    """Whether an option's ``value`` is its ``default``: the same object, or equal and of the same kind — a bool
-    only as a bool (True is not 1), a number as a number, text as text ("5" is not 5). Used to tell an option a
-    caller changed from one left as it was."""
-    if value is default:
-        return True
-    if isinstance(default, bool) or isinstance(value, (bool, np.bool_)):
-        return isinstance(value, (bool, np.bool_)) and isinstance(default, bool) and bool(value) == default
-    if isinstance(default, numbers.Real) and isinstance(value, numbers.Real):
-        return value == default
-    return isinstance(default, str) and isinstance(value, str) and value == default
-
-
-def check_symmetric(P, name: str) -> None:
+def check_symmetric(P: np.ndarray, name: str) -> None:
     """ValueError naming ``name`` unless the square float array ``P`` is symmetric to round-off: entrywise
-    |P − Pᵀ| ≤ 1e−12·max(1, max|P|) + 1e−10·|Pᵀ| (np.allclose's test, without its overhead: covariances are
-    checked per scan)."""
+    |P − Pᵀ| ≤ 1e−12·max(1, max|P|) + 1e−10·|Pᵀ|."""
     if not np.all(np.abs(P - P.T) <= 1e-12 * max(1.0, float(np.max(np.abs(P), initial=0.0))) + 1e-10 * np.abs(P.T)):
         raise ValueError(f"{name} must be symmetric")
 
 
-def rng_seed(seed, name: str = "seed"):
-    """``seed`` unchanged when it is a reproducible seed for ``numpy.random.default_rng``: a non-negative
-    integer, a non-empty sequence of them, or a ``numpy.random.SeedSequence``. Anything else (negative,
-    float, bool, None, text) raises ValueError naming ``name``."""
+def rng_seed(seed: Any, name: str = "seed") -> Any:
+    """``seed`` unchanged when ``numpy.random.default_rng`` reproduces it: a non-negative integer, a non-empty
+    sequence of them, or a ``numpy.random.SeedSequence``."""
     if isinstance(seed, np.random.SeedSequence):
         return seed
-    if isinstance(seed, numbers.Integral) and not isinstance(seed, bool):
-        if seed < 0:
-            raise ValueError(f"{name} must be a non-negative integer or a sequence of them, got {seed!r}")
-        return seed
-    arr = np.asarray(seed, dtype=object) if isinstance(seed, (list, tuple, np.ndarray)) else None
-    if arr is None or arr.ndim != 1 or arr.size == 0 or not all(
-            isinstance(v, numbers.Integral) and not isinstance(v, bool) and v >= 0 for v in arr):
+    items = list(seed) if isinstance(seed, (list, tuple)) or (isinstance(seed, np.ndarray) and seed.ndim == 1) \
+        else [seed]
+    if not items or not all(isinstance(v, numbers.Integral) and not isinstance(v, bool) and v >= 0 for v in items):
         raise ValueError(f"{name} must be a non-negative integer or a sequence of them, got {seed!r}")
     return seed
 
 
-def boolean(value, name: str) -> bool:
-    """``value`` as a bool: True or False (a numpy bool too); 1, "yes", None and the like raise ValueError naming
-    ``name`` (a truthy string would otherwise silently switch an option on)."""
+def boolean(value: Any, name: str) -> bool:
+    """``value`` as a bool: True or False (a numpy bool too); 1, "yes", None and the like raise ValueError."""
     if not isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be True or False, got {value!r}")
     return bool(value)
 
 
-def one_of(value, name: str, options):
-    """``value`` unchanged when it is one of the strings ``options``; anything else raises ValueError naming
-    ``name`` and listing the options."""
+def one_of(value: Any, name: str, options: Iterable[str]) -> str:
+    """``value`` unchanged when it is one of the strings ``options``; ValueError listing them otherwise."""
     if not isinstance(value, str) or value not in options:
         raise ValueError(f"{name} must be one of {', '.join(repr(o) for o in options)}, got {value!r}")
     return value
 
 
-def function(value, name: str, allow_none: bool = False):
-    """``value`` unchanged when it is callable (or None with ``allow_none``); anything else raises ValueError
-    naming ``name``."""
+def function(value: Any, name: str, allow_none: bool = False) -> Callable | None:
+    """``value`` unchanged when it is callable (or None with ``allow_none``); ValueError naming ``name`` otherwise."""
     if (value is None and allow_none) or callable(value):
         return value
     raise ValueError(f"{name} must be callable{' or None' if allow_none else ''}, got {value!r}")

@@ -13,5 +13,5 @@ def test_wrap_angle_mod_keeps_the_simulator_form_bit_for_bit():
     for v in values[:200].tolist():
         out = wrap_angle_mod(v)
         assert type(out) is float and out == (v + math.pi) % (2.0 * math.pi) - math.pi
-    from helpers.drivebot.simulator import wrap
-    assert wrap is wrap_angle_mod
+    from helpers.drivebot import simulator
+    assert simulator.wrap_angle_mod is wrap_angle_mod

@@ -357,7 +357,7 @@ EDGE_CLASSES = [EdgeSE2, EdgeSE2Prior, EdgePositionPrior, EdgeHeadingPrior, Edge
 
 @pytest.mark.parametrize("cls", EDGE_CLASSES, ids=lambda c: c.__name__)
 @pytest.mark.parametrize("bad, message", [("nan", "must be finite"), ("inf", "must be finite"),
-                                          ("long", "must have"), ("text", "must be a numeric vector")])
+                                          ("long", "must have"), ("text", "must be an array of real numbers")])
 def test_every_2d_edge_rejects_bad_measurements(cls, bad, message):
     m = cls.measurement_dimension
     z = {"nan": [np.nan] * m, "inf": [-np.inf] * m, "long": [0.0] * (m + 1), "text": ["a"] * m}[bad]

@@ -33,15 +33,8 @@ def test_determinant_table_bad_inputs():
         an.determinant_table([1, 2], P, P)
     with pytest.raises(ValueError, match="P_before"):
         an.determinant_table([1], np.zeros((1, 3, 3)), P)
-    with pytest.raises(ValueError, match="positive definite"):
-        an.determinant_table([1], np.zeros((1, 2, 2)), P)
     with pytest.raises(ValueError, match="finite"):
         an.determinant_table([1], P, np.full((1, 2, 2), np.nan))
-
-
-def test_covariance_determinants_bad():
-    with pytest.raises(ValueError, match="P must"):
-        an.covariance_determinants(np.eye(2))
 
 
 @settings(max_examples=30, deadline=None, derandomize=True)
@@ -73,8 +66,6 @@ def test_plot_covariance_ellipses_draws_the_ellipses_of_the_inputs():
     # difference is folded into [−90°, 90°) instead
     diff = np.mod(coll.get_angles()[1:] - [0.0, 45.0] + 90.0, 180.0) - 90.0
     np.testing.assert_allclose(diff, 0.0, atol=1e-9)
-    with pytest.raises(ValueError, match="means"):
-        an.plot_covariance_ellipses(ax, [[0, 0]], np.array([np.eye(2), np.eye(2)]))
     plt.close(fig)
 
 
@@ -91,10 +82,6 @@ def test_find_loop_closure_first_regap():
 
 
 def test_find_loop_closure_bad_inputs():
-    with pytest.raises(ValueError, match="same shape"):
-        an.find_loop_closure(np.arange(3), np.arange(2))
-    with pytest.raises(ValueError, match="step must"):
-        an.find_loop_closure(np.arange(3.0), np.arange(3))
     with pytest.raises(ValueError, match="min_gap"):
         an.find_loop_closure(np.arange(3), np.arange(3), min_gap=0)
 
@@ -102,21 +89,15 @@ def test_find_loop_closure_bad_inputs():
 # ---------------------------------------------------------------------------------------------- masks / RMS
 def test_rms():
     keep = np.array([True, False, True])
-    est = np.array([[0.0, 0.0], [100.0, 0.0], [3.0, 4.0]])
-    tru = np.zeros((3, 2))
-    assert an.position_error_rms(est, tru, keep) == pytest.approx(np.sqrt(12.5))
-    assert an.position_error_rms(est.T, tru.T, keep) == pytest.approx(np.sqrt(12.5))
+    est = np.array([[0.0, 0.0], [100.0, 0.0], [3.0, 4.0]]).T
+    assert an.position_error_rms(est, np.zeros((2, 3)), keep) == pytest.approx(np.sqrt(12.5))
 
 
 def test_rms_bad_inputs():
-    with pytest.raises(ValueError, match="keep must"):
-        an.position_error_rms(np.zeros((3, 2)), np.zeros((3, 2)), np.array([1, 0, 1]))
-    with pytest.raises(ValueError, match="matching"):
-        an.position_error_rms(np.zeros((3, 2)), np.zeros((4, 2)))
-    with pytest.raises(ValueError, match="no vertex"):
-        an.position_error_rms(np.zeros((3, 2)), np.zeros((3, 2)), np.zeros(3, bool))
-    with pytest.raises(ValueError, match="NaN"):
-        an.position_error_rms(np.full((3, 2), np.nan), np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="estimate and truth"):
+        an.position_error_rms(np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(3, bool))
+    with pytest.raises(ValueError, match="finite"):
+        an.position_error_rms(np.full((2, 3), np.nan), np.zeros((2, 3)))
 
 
 # ---------------------------------------------------------------------------------------------- tangents
@@ -145,14 +126,8 @@ def test_tangent_misalignment_known_geometry(centre, expected):
 
 def test_tangent_bad_inputs():
     P = np.array([np.eye(2), np.eye(2)])
-    with pytest.raises(ValueError, match="points"):
-        an.fit_tangent_centre(np.zeros((3, 2)), P)
-    with pytest.raises(ValueError, match="at least 2"):
+    with pytest.raises(ValueError, match="do not determine a centre"):
         an.fit_tangent_centre(np.zeros((1, 2)), P[:1])
-    with pytest.raises(ValueError, match="centre must"):
-        an.tangent_misalignment(np.ones((2, 2)), P, [1.0])
-    with pytest.raises(ValueError, match="coincides"):
-        an.tangent_misalignment(np.ones((2, 2)), P, [1.0, 1.0])
 
 
 def test_landmark_observations_of_a_short_run():

@@ -32,10 +32,6 @@ def test_marginal_information_is_the_inverse_of_the_covariance_block(seed):
 
 def test_schur_complement_bad_inputs():
     H = np.eye(4)
-    with pytest.raises(ValueError, match="H must be"):
-        mg.schur_complement(np.ones((2, 3)), np.zeros(2), [0], [1])
-    with pytest.raises(ValueError, match="b must have shape"):
-        mg.schur_complement(H, np.zeros(3), [0], [1])
     with pytest.raises(ValueError, match="disjoint"):
         mg.schur_complement(H, np.zeros(4), [0, 1], [1])
     with pytest.raises(ValueError, match="marginalise has an index out of range"):
@@ -43,9 +39,6 @@ def test_schur_complement_bad_inputs():
     H2 = np.diag([1.0, 1.0, 0.0])
     with pytest.raises(ValueError, match="singular"):
         mg.schur_complement(H2, np.zeros(3), [0, 1], [2])
-    lam, eta = mg.schur_complement(H, np.arange(4.0), [1, 2], [])
-    np.testing.assert_array_equal(lam, np.eye(2))
-    np.testing.assert_array_equal(eta, [1.0, 2.0])
 
 
 def test_linear_prior_factor_reproduces_lam_and_eta_when_rank_deficient():
@@ -59,8 +52,6 @@ def test_linear_prior_factor_reproduces_lam_and_eta_when_rank_deficient():
     np.testing.assert_allclose(J.T @ r0, eta, atol=1e-10)
     with pytest.raises(ValueError, match="no positive eigenvalue"):
         mg.linear_prior_factor(np.zeros((2, 2)), np.zeros(2))
-    with pytest.raises(ValueError, match="eta must have shape"):
-        mg.linear_prior_factor(np.eye(2), np.zeros(3))
 
 
 def test_linear_prior_class_jacobian_and_wrapping():
@@ -74,10 +65,6 @@ def test_linear_prior_class_jacobian_and_wrapping():
     np.testing.assert_allclose(e.error(), J @ d, atol=1e-12)
     Ja, Jp = e.jacobians()
     np.testing.assert_allclose(np.hstack([Ja, Jp]), J)
-    with pytest.raises(ValueError, match="vertex_types"):
-        mg.linear_prior_class([VertexSE2Exp], 1)
-    with pytest.raises(ValueError, match="rank"):
-        mg.linear_prior_class([VertexSE2], 0)
 
 
 # ---------------------------------------------------------------------------------------------- on a graph
@@ -136,13 +123,14 @@ def test_marginalise_vertex_bad_inputs_and_isolated_vertex():
     g.add_edge(EdgeSE2([a, b], measurement=[1, 0, 0], information=np.eye(3)))
     assert mg.marginalise_vertex(g, b) is None           # only a fixed neighbour: nothing to keep
     assert b.graph is None and g.number_of_edges() == 0
-    with pytest.raises(ValueError, match="vertex of this graph"):
+    with pytest.raises(ValueError, match="free VertexSE2 or VertexPointXY of this graph"):
         mg.marginalise_vertex(g, b)
-    with pytest.raises(ValueError, match="vertex of this graph"):
+    with pytest.raises(ValueError, match="free VertexSE2 or VertexPointXY of this graph"):
         mg.marginalise_vertex(g, "not a vertex")
-    with pytest.raises(ValueError, match="free vertex"):
-        mg.local_system(a)
-    with pytest.raises(ValueError, match="additive"):
-        mg.local_system(VertexSE2Exp(5, [0, 0, 0]))
+    with pytest.raises(ValueError, match="free VertexSE2"):
+        mg.marginalise_vertex(g, a)
+    g.add_vertex(c := VertexSE2Exp(5, [0, 0, 0]))
+    with pytest.raises(ValueError, match="free VertexSE2"):
+        mg.marginalise_vertex(g, c)
     with pytest.raises(ValueError, match="free vertex of the graph"):
         mg.hessian_blocks(g, [b])

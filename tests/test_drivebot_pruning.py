@@ -32,16 +32,8 @@ def test_keep_k_per_group_is_seeded_and_random():
     assert set(pos[a]) == set(range(6))
 
 
-def test_keep_k_per_group_bad_inputs():
+def test_keep_k_per_group_of_no_edge():
     rng = np.random.default_rng(0)
-    with pytest.raises(ValueError, match="group"):
-        pr.keep_k_per_group(np.zeros((2, 2), int), 1, rng)
-    with pytest.raises(ValueError, match="group must contain integers"):
-        pr.keep_k_per_group(np.zeros(3), 1, rng)
-    with pytest.raises(ValueError, match="k must"):
-        pr.keep_k_per_group(np.zeros(3, int), -1, rng)
-    with pytest.raises(ValueError, match="rng"):
-        pr.keep_k_per_group(np.zeros(3, int), 1, 0)
     assert pr.keep_k_per_group(np.zeros(0, int), 1, rng).shape == (0,)
 
 
@@ -49,10 +41,6 @@ def test_keep_k_per_group_bad_inputs():
 def test_stride_mask():
     np.testing.assert_array_equal(pr.stride_mask(np.arange(6), 2), [1, 0, 1, 0, 1, 0])
     np.testing.assert_array_equal(pr.stride_mask(np.arange(6), 3, offset=1), [0, 1, 0, 0, 1, 0])
-    with pytest.raises(ValueError, match="stride"):
-        pr.stride_mask(np.arange(3), 0)
-    with pytest.raises(ValueError, match="offset"):
-        pr.stride_mask(np.arange(3), 2, offset=0.5)
 
 
 # ---------------------------------------------------------------------------------------------- straights
@@ -76,12 +64,6 @@ def test_straight_segment_mask_wraps_heading():
 
 
 def test_straight_segment_mask_bad_inputs():
-    with pytest.raises(ValueError, match="headings"):
-        pr.straight_segment_mask(np.array([0.0, np.nan]), 0.1)
-    with pytest.raises(ValueError, match="dt"):
-        pr.straight_segment_mask(np.zeros(4), np.ones(2))
-    with pytest.raises(ValueError, match="dt"):
-        pr.straight_segment_mask(np.zeros(4), -0.1)
     with pytest.raises(ValueError, match="window must be odd"):
         pr.straight_segment_mask(np.zeros(4), 0.1, window=4)
     with pytest.raises(ValueError, match="rate_threshold"):
@@ -96,10 +78,6 @@ def test_protect_landmarks_restores_first_edge():
     out = pr.protect_landmarks(keep, lm)
     np.testing.assert_array_equal(out, [True, True, False, False, False, True])
     assert not keep[0]  # input not modified
-    with pytest.raises(ValueError, match="keep must"):
-        pr.protect_landmarks(np.ones(3), np.arange(3))
-    with pytest.raises(ValueError, match="keep must"):
-        pr.protect_landmarks(np.ones(2, bool), np.arange(3))
 
 
 # ---------------------------------------------------------------------------------------------- hook ctor
@@ -207,11 +185,6 @@ def test_alternate_hook_drops_odd_vertices():
     odd = (t["vertex"] % 2) == 1
     # only the protected first edge of a landmark may survive on an odd vertex
     assert odd.sum() <= len(np.unique(t["landmark"]))
-
-
-def test_landmark_edge_table_bad_input():
-    with pytest.raises(ValueError, match="system must"):
-        pr.landmark_edge_table(object())
 
 
 def test_hook_on_the_drivebot_system():

@@ -32,8 +32,6 @@ def test_online_estimate_records_newest_vertex_each_tick():
     assert np.allclose(rec.time, res.vehicle_state_time)
     # odometry only: the graph is a tree, so the online estimate is the final (smoothed) one
     assert np.allclose(rec.state, res.vehicle_state_history, atol=1e-9)
-    with pytest.raises(ValueError, match="system"):
-        rec(object(), 0)
 
 
 def test_fraction_inside():
@@ -68,7 +66,5 @@ def test_jacobian_error_small_for_model_edges_and_large_for_a_wrong_one():
     v = res.system.vehicle_vertices[3]
     wrong = WrongJacobian([v], measurement=[0.1], information=np.eye(1))
     assert abs(jacobian_error(wrong) - 1.0) < 1e-6
-    with pytest.raises(ValueError, match="edge"):
-        jacobian_error(object())
     with pytest.raises(ValueError, match="eps"):
         jacobian_error(wrong, eps=0.0)

@@ -62,15 +62,11 @@ def test_paired_and_relative_table(evaluation):
     pairs = q3.paired(ev, "keep 1", "full", "landmark_edges")
     assert pairs == [(ev["keep 1"][s]["landmark_edges"], ev["full"][s]["landmark_edges"]) for s in (0, 1)]
     assert q3.paired(ev, "remove all", "full", "edges") == []          # every run of the variant failed
-    with pytest.raises(ValueError, match="unknown variant"):
-        q3.paired(ev, "nope", "full", "edges")
     lines = q3.format_relative(ev, "full").splitlines()
     assert len(lines) == 3 and lines[0] == f"{'full':>24}: edges removed     0, landmark edges 1.00, " \
                                            "nnz(H) 1.00, median position variance ×1.0"
     ratio = np.mean([p for p, _ in pairs]) / np.mean([f for _, f in pairs])
     assert f"landmark edges {ratio:.2f}" in lines[1]
-    with pytest.raises(ValueError, match="reference"):
-        q3.format_relative(ev, "nope")
 
 
 def test_plots(evaluation):
@@ -80,15 +76,9 @@ def test_plots(evaluation):
     q3.plot_seed_bars(axes, ok, ["edges", "hessian_nnz", "pose_rms", "chi2_per_dof"])
     assert [t.get_text() for t in axes[0, 0].get_yticklabels()] == list(ok)      # first variant on top
     assert all(t.get_text() == "" for t in axes[0, 1].get_yticklabels())
-    with pytest.raises(ValueError, match="one axis per metric"):
-        q3.plot_seed_bars(axes, ok, ["edges"])
     fig2, ax = plt.subplots()
     H = np.eye(5)
     assert q3.spy_hessian(ax, H, np.array([0, 3]), 1, "t") == 5
-    with pytest.raises(ValueError, match="square"):
-        q3.spy_hessian(ax, np.ones((2, 3)), np.array([0]), 0)
-    with pytest.raises(ValueError, match="n_vehicle"):
-        q3.spy_hessian(ax, H, np.array([0, 3]), 5)
     plt.close("all")
 
 
@@ -101,5 +91,3 @@ def test_evaluate_seeds_bad_seeds(seeds):
 def test_evaluate_seeds_bad_variants():
     with pytest.raises(ValueError, match="variants"):
         q3.evaluate_seeds("q3_a", {}, [0])
-    with pytest.raises(ValueError, match="variants"):
-        q3.evaluate_seeds("q3_a", {"x": 3}, [0])

@@ -4,7 +4,8 @@ import filecmp
 import numpy as np
 
 from helpers.drivebot import scenario_files
-from helpers.drivebot.scenarios import SCENARIO_DEFINITIONS, data_dir, load_scenario
+from helpers.drivebot.scenario_files import SCENARIO_DEFINITIONS
+from helpers.drivebot.scenarios import data_dir, load_scenario
 
 
 def test_written_files_equal_the_shipped_ones(tmp_path):

@@ -104,26 +104,6 @@ def test_a_failed_save_keeps_the_old_pair_and_leaves_no_temporaries(failing, tmp
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == old
 
 
-def test_a_failed_rename_puts_the_old_pair_back(tmp_path, monkeypatch):
-    monkeypatch.setenv("WORKBOOK_FIGURES_DIR", str(tmp_path))
-    fig = _figure()
-    figures.save(fig, "pair")
-    old = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
-    fig.axes[0].plot([0, 1], [0, 1], color="r")
-    replace = os.replace
-
-    def fail_on_pdf(src, dst):
-        if str(dst).endswith("pair.pdf"):
-            raise OSError("disk full")
-        return replace(src, dst)
-    monkeypatch.setattr(figures.os, "replace", fail_on_pdf)
-    with pytest.raises(OSError, match="disk full"):
-        figures.save(fig, "pair")
-    monkeypatch.setattr(figures.os, "replace", replace)
-    plt.close(fig)
-    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == old
-
-
 def test_saved_files_have_the_usual_mode(tmp_path, monkeypatch):
     monkeypatch.setenv("WORKBOOK_FIGURES_DIR", str(tmp_path))
     umask = os.umask(0o022)

@@ -34,10 +34,8 @@ def test_log_pdf_scaled_identity(a):
 def test_log_pdf_huge_scale_stays_finite():
     n = 100
     g = Gaussian(np.zeros(n), 1e300 * np.eye(n))
-    value, grad, hess = g.log_pdf(np.ones(n), return_grad=True, return_hess=True)
-    assert np.isfinite(value)
+    value = g.log_pdf(np.ones(n))
     assert value == pytest.approx(-n * np.log(1e300) - n / 2 * np.log(2 * np.pi), rel=1e-12)
-    assert np.all(np.isfinite(grad)) and np.all(np.isfinite(hess))
 
 
 @pytest.mark.parametrize("p, nu, expected", [
@@ -144,23 +142,11 @@ def test_transform_with_noise_dense_formula():
     np.testing.assert_allclose(y.cov, C @ g.cov @ C.T + SR.T @ SR, atol=1e-10)
 
 
-# ---------------------------------------------------------------------------- log-pdf derivatives
-def test_log_pdf_gradient_and_hessian_central_differences():
+def test_log_pdf_equals_scipy():
     rng = np.random.default_rng(11)
     g = Gaussian(rng.normal(size=4), random_upper(rng, 4))
     x = rng.normal(size=4)
-    value, grad, hess = g.log_pdf(x, return_grad=True, return_hess=True)
-    assert value == pytest.approx(scipy.stats.multivariate_normal(g.mean, g.cov).logpdf(x), rel=1e-10)
-    h = 1e-6
-    E = np.eye(4) * h
-    fd_grad = np.array([(g.log_pdf(x + e) - g.log_pdf(x - e)) / (2 * h) for e in E])
-    np.testing.assert_allclose(grad, fd_grad, rtol=1e-6, atol=1e-6)
-    fd_hess = np.array([(g.log_pdf(x + e, return_grad=True)[1] - g.log_pdf(x - e, return_grad=True)[1]) / (2 * h)
-                        for e in E])
-    np.testing.assert_allclose(hess, fd_hess, rtol=1e-6, atol=1e-6)
-    v2, h2 = g.log_pdf(x, return_hess=True)
-    assert v2 == value
-    np.testing.assert_allclose(h2, -np.linalg.inv(g.cov), rtol=1e-8, atol=1e-10)
+    assert g.log_pdf(x) == pytest.approx(scipy.stats.multivariate_normal(g.mean, g.cov).logpdf(x), rel=1e-10)
 
 
 def test_sq_mahalanobis_vectorised():

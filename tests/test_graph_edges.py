@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from helpers.graph import (EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
+from helpers.graph import (BaseEdge, EdgeHeadingPrior, EdgePointPrior, EdgePositionPrior, EdgeRangeBearing, EdgeSE2,
                            EdgeSE2PointXY, EdgeSE2Prior, VertexPointXY, VertexSE2, batch_matrix, wrap_angle)
 
 
@@ -127,35 +127,6 @@ def test_per_object_error_uses_vectorised_model():
     assert e.chi2() == pytest.approx(float(ref[0] @ np.diag([1, 2, 3]) @ ref[0]))
 
 
-def test_protocol_example_from_the_package_docstring():
-    """The edge class written in helpers.graph's docstring works: its Jacobians match central differences and an
-    optimiser with it reaches zero error."""
-    import helpers.graph as hg
-
-    doc = hg.__doc__
-    start = doc.index("    class EdgeWorldOffset(BaseEdge):")
-    source = "\n".join(line[4:] for line in doc[start:doc.index("The standard 2D set", start)].splitlines())
-    namespace = {"BaseEdge": hg.BaseEdge, "VertexSE2": VertexSE2, "VertexPointXY": hg.VertexPointXY, "np": np,
-                 "batch_matrix": batch_matrix}
-    exec(source, namespace)
-    cls = namespace["EdgeWorldOffset"]
-    rng = np.random.default_rng(21)
-    states = [_poses(rng, 30), rng.normal(size=(30, 2)) * 10]
-    z = rng.normal(size=(30, 2))
-    e, jac = cls.evaluate(states, z, {})
-    np.testing.assert_allclose(e, states[1] - states[0][:, :2] - z)
-    for j, num in zip(jac, _central_difference(cls, states, z, {}), strict=True):
-        np.testing.assert_allclose(j, num, atol=1e-6)
-    g = hg.SparseOptimizer()
-    a, m = VertexSE2(0, [1.0, 2.0, 0.3], fixed=True), hg.VertexPointXY(0, [0.0, 0.0])
-    g.add_vertex(a)
-    g.add_vertex(m)
-    g.add_edge(cls([a, m], measurement=[0.5, -1.0], information=np.eye(2)))
-    g.initialize_optimization()
-    assert g.optimize(20, algorithm="lm") < 1e-20
-    np.testing.assert_allclose(m.estimate, [1.5, 1.0], atol=1e-9)
-
-
 def test_information_from_covariance_is_the_validated_cached_inverse():
     from helpers.graph import information_from_covariance
     cov = np.array([[2.0, 0.5], [0.5, 1.0]])
@@ -164,6 +135,26 @@ def test_information_from_covariance_is_the_validated_cached_inverse():
     assert np.array_equal(info, info.T) and not info.flags.writeable
     assert information_from_covariance(cov.copy()) is info                  # cached by value
     for bad, msg in [(np.diag([1.0, -1.0]), "positive definite"), (np.array([[1.0, 2.0], [0.0, 1.0]]), "symmetric"),
-                     (np.full((2, 2), np.nan), "finite"), (np.ones(3), "square"), ("abc", "numeric")]:
+                     (np.full((2, 2), np.nan), "finite"), (np.ones(3), "square"), ("abc", "real numbers")]:
         with pytest.raises(ValueError, match=f"cov.*{msg}|{msg}"):
             information_from_covariance(bad, "cov")
+
+
+def test_an_edge_without_a_model_says_what_to_define():
+    class Nothing(BaseEdge):
+        vertex_types = (VertexPointXY,)
+        measurement_dimension = 2
+
+    with pytest.raises(NotImplementedError, match="evaluate"):
+        Nothing.evaluate([np.zeros((1, 2))], np.zeros((1, 2)), {})
+
+
+def test_batch_matrix_rows_scalars_and_bad_input():
+    c, s = np.array([1.0, 0.0]), np.array([0.0, 1.0])
+    r = batch_matrix([[c, -s], [s, c]])
+    assert r.shape == (2, 2, 2) and r.flags.c_contiguous
+    np.testing.assert_array_equal(r[1], [[0.0, -1.0], [1.0, 0.0]])
+    np.testing.assert_array_equal(batch_matrix([[c, 0], [0, 1]])[0], np.eye(2))
+    for bad in ([], [[]], [[c, s], [c]]):
+        with pytest.raises(ValueError, match="rows"):
+            batch_matrix(bad)

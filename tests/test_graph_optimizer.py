@@ -312,14 +312,13 @@ def test_unknown_duplicate_and_unset_vertices():
         g.add_vertex(VertexSE2(0))
     with pytest.raises(GraphError, match="unknown vertex"):
         g.add_edge(EdgeSE2([a, b], measurement=[1, 0, 0]))
-    e = EdgeSE2(measurement=[1, 0, 0])
-    e.set_vertex(0, a)
+    e = EdgeSE2([a, None], measurement=[1, 0, 0])
     with pytest.raises(GraphError, match="slot 1 is not set"):
         g.add_edge(e)
     with pytest.raises(GraphError, match="slot 1 is not set"):
         e.error()
     with pytest.raises(ValueError, match="needs a VertexPointXY"):
-        EdgeRangeBearing().set_vertex(1, b)
+        EdgeRangeBearing([a, b])
     with pytest.raises(ValueError, match="max_iterations"):
         g.optimize(-1)
     with pytest.raises(ValueError, match="algorithm"):

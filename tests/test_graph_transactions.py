@@ -247,9 +247,9 @@ def _model(returns):
 MODELS = {
     "error-1d": (lambda e, jac: (e[:, 0], jac), r"error of shape \(1,\).*expected \(1, 1\)"),
     "error-wide": (lambda e, jac: (np.c_[e, e], jac), r"error of shape \(1, 2\)"),
-    "jacobians-none": (lambda e, jac: (e, None), "returned None; expected a list of 1"),
-    "jacobians-short": (lambda e, jac: (e, []), "returned 0 Jacobian"),
-    "jacobian-shape": (lambda e, jac: (e, [jac[0][:, :, :2]]), r"Jacobian of shape \(1, 1, 2\) for slot 0"),
+    "jacobians-none": (lambda e, jac: (e, None), r"Jacobians of shapes None; expected \[\(1, 1, 3\)\]"),
+    "jacobians-short": (lambda e, jac: (e, []), r"Jacobians of shapes \[\]"),
+    "jacobian-shape": (lambda e, jac: (e, [jac[0][:, :, :2]]), r"Jacobians of shapes \[\(1, 1, 2\)\]"),
 }
 
 

@@ -2,14 +2,14 @@
 import numpy as np
 import pytest
 
-from helpers.association.nn_timing import (
-    inverse_2x2,
-    loglog_slope,
-    pair_distances,
-    per_observation_nn,
-    random_nn_problem,
-    time_nn,
-)
+from helpers.association.nn_timing import inverse_2x2, loglog_slope, pair_distances, per_observation_nn, time_nn
+
+
+def random_nn_problem(rng, n_landmarks, n_observations):
+    mu = rng.uniform(0.0, 100.0, (n_landmarks, 2))
+    A = rng.normal(0.0, 0.5, (n_landmarks, 2, 2))
+    Y = rng.uniform(0.0, 100.0, (2, n_observations))
+    return mu, A @ np.swapaxes(A, 1, 2) + 0.01 * np.eye(2), Y
 
 
 def test_distances_and_labels_match_the_dense_formula():
@@ -36,19 +36,21 @@ def test_bad_inputs():
     mu, S, Y = random_nn_problem(rng, 3, 2)
     with pytest.raises(ValueError, match="mu"):
         per_observation_nn(mu[:, :1], S, Y)
-    with pytest.raises(ValueError, match="S must"):
+    with pytest.raises(ValueError, match="S and Y must have shapes"):
         per_observation_nn(mu, S[:2], Y)
-    with pytest.raises(ValueError, match="Y must"):
+    with pytest.raises(ValueError, match="S and Y must have shapes"):
         per_observation_nn(mu, S, Y[:1])
+    with pytest.raises(ValueError, match="^Y must be finite"):
+        per_observation_nn(mu, S, np.full_like(Y, np.nan))
     with pytest.raises(ValueError, match="positive definite"):
         per_observation_nn(mu, -S, Y)
     with pytest.raises(ValueError, match="gate"):
         per_observation_nn(mu, S, Y, gate=0.0)
     with pytest.raises(ValueError, match="block_pairs"):
         per_observation_nn(mu, S, Y, block_pairs=0)
-    with pytest.raises(ValueError, match="rng"):
-        random_nn_problem(0, 3, 2)
     with pytest.raises(ValueError, match="repeats"):
         time_nn([1], [1], repeats=0)
+    with pytest.raises(ValueError, match="^Ks must"):
+        time_nn([0], [1])
     with pytest.raises(ValueError, match="distinct"):
         loglog_slope([1, 1], [1, 2])

@@ -34,7 +34,7 @@ def test_claims_bad_claim_text():
 
 def test_source_is_the_running_code(capsys):
     text = source_lines(Claims.check)
-    assert text.startswith("def check(self, condition, claim: str) -> bool:")
+    assert text.startswith("def check(self, condition: object, claim: str) -> bool:")
     show_source(Claims.check, start="ok = bool", stop="return ok")
     with pytest.raises(ValueError, match="no line"):
         show_source(Claims.check, start="no such text")

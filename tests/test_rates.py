@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from helpers.association.evaluation import run_trials
+from helpers.association.evaluation import fmt_rate, rates, run_trials
 from helpers.association.maximum_likelihood import maximum_likelihood
-from helpers.association.rates import fmt_rate, plot_rates, rates
+from helpers.association.plots import plot_rates
 
 
 def test_no_pairing_gives_undefined_precision():

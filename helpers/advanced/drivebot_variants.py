@@ -16,9 +16,10 @@ from __future__ import annotations
 import math
 import time
 
+from ..drivebot.config import SimulatorConfiguration
 from ..drivebot.edges import VehicleVertex
 from ..drivebot.runner import Results, run_question
-from ..drivebot.slam_system import DriveBotSLAMSystem
+from ..drivebot.slam_system import DriveBotSLAMSystem, SLAMOptions
 from .fast_graph import FastOptimizer
 from .incremental import IncrementalSmoother
 
@@ -56,10 +57,10 @@ class SystemSetup:
     def __init__(self, system_class: type):
         self.system_class = system_class
 
-    def system(self, config, **slam_options):
-        return self.system_class(config, **slam_options)
+    def system(self, config: SimulatorConfiguration, options: SLAMOptions) -> DriveBotSLAMSystem:
+        return self.system_class(config, options)
 
-    def filter(self, events, simulator):
+    def filter(self, events: list, simulator: object) -> list:
         return events
 
 

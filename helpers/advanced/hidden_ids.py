@@ -54,6 +54,7 @@ from ..drivebot.edges import LandmarkVertex
 from ..drivebot.events import Event, EventType
 from ..drivebot.runner import Results, question_setup, run_question
 from ..drivebot.slam_system import DriveBotSLAMSystem
+from ..graph import information_from_covariance
 from ..validation import integer, nonnegative_number, one_of, probability
 from .fast_graph import FastOptimizer
 from .online_slam import (OnlineFrontEnd, RangeBearingModel, association_scores, check_algorithm, check_options,
@@ -109,8 +110,13 @@ class SensorCorruption:
         order = rng.permutation(ids.size)
         z, ids = z[:, order], ids[order]
         shown = np.arange(1, ids.size + 1, dtype=np.int64) if hide_ids else ids
-        # the columns of a checked event, permuted or thinned, and finite clutter columns: valid by construction
-        return Event.derived(time, EventType.LANDMARK, z, cov, landmark_ids=shown), ids
+        # the columns of a checked event, permuted or thinned, and finite clutter columns: valid by construction,
+        # so the event is built without the constructor's checks
+        event = object.__new__(Event)
+        for name, value in (("time", float(time)), ("type", EventType.LANDMARK), ("data", z), ("covariance", cov),
+                            ("landmark_ids", shown)):
+            object.__setattr__(event, name, value)
+        return event, ids
 
 
 class AssociatingSLAMSystem(DriveBotSLAMSystem):
@@ -127,13 +133,13 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
 
     graph_class = FastOptimizer
 
-    def __init__(self, config=None, data_association: str = "jcbb", n_sigma: float = 3.0, algorithm_options=None,
-                 rules=None, association_period: int = 100, association_iterations: int = 1,
+    def __init__(self, config=None, options=None, data_association: str = "jcbb", n_sigma: float = 3.0,
+                 algorithm_options=None, rules=None, association_period: int = 100, association_iterations: int = 1,
                  association_algorithm: str = "gn",
                  range_margin: float = 1.0, association_space: str = "cartesian", reject_ambiguous: bool = True,
                  closure_sigma: float = 0.5, closure_support: int = 2, closure_patience: int = 50,
-                 verify_merges: bool = False, verify_n_sigma: float = 3.0, **slam_options):
-        super().__init__(config, **slam_options)
+                 verify_merges: bool = False, verify_n_sigma: float = 3.0):
+        super().__init__(config, options)
         self.association_period = integer(association_period, "association_period", minimum=1)
         self.association_iterations = integer(association_iterations, "association_iterations", minimum=1)
         self.association_algorithm = one_of(association_algorithm, "association_algorithm", ("lm", "gn", "lm-gtsam"))
@@ -149,9 +155,12 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
     def _new_landmark(self, key, estimate):
         v = LandmarkVertex(key + 1, id=key + 1, estimate=estimate)
         self.landmark_vertices[key + 1] = v
-        if self.verbose:
-            print(f"Creating landmark {key + 1}")
         return v
+
+    @staticmethod
+    def _information(cov):
+        """Ω = cov⁻¹ of an event's covariance (validated, cached by value)."""
+        return information_from_covariance(cov, "laser covariance")
 
     def _handle_initial_condition(self, event):
         super()._handle_initial_condition(event)
@@ -181,7 +190,7 @@ class AssociatingSLAMSystem(DriveBotSLAMSystem):
 
 
     def _association_only(self) -> bool:
-        return self.optimization_period is None and self.step_number % self.association_period == 0
+        return self.options.optimization_period is None and self.step_number % self.association_period == 0
 
     def recommend_optimization(self) -> bool:
         return super().recommend_optimization() or self._association_only()
@@ -226,13 +235,13 @@ class HiddenIds:
         self.scan_truth = []
         self.corruption = None
 
-    def system(self, config, **slam_options):
-        """The SLAM system of the run."""
+    def system(self, config, options):
+        """The SLAM system of the run (``options``: its SLAMOptions)."""
         self.corruption = SensorCorruption(self.clutter_rate, self.detection_probability,
                                            config.laser_detection_range, config.r_laser, self.rng)
         if self.data_association is None:
-            return DriveBotSLAMSystem(config, **slam_options)
-        return AssociatingSLAMSystem(config, self.data_association, **self.options, **slam_options)
+            return DriveBotSLAMSystem(config, options)
+        return AssociatingSLAMSystem(config, options, self.data_association, **self.options)
 
     def filter(self, events, sim):
         """The tick's events with the LANDMARK event corrupted (or added: clutter on a scan that saw nothing)."""

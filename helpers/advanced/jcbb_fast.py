@@ -75,4 +75,4 @@ def jcbb(density, Y, n_sigma: float = 3.0, max_nodes: int | None = None) -> Asso
         problem.d, levels, cand_ptr, cols, last_level, thresh, -1 if max_nodes is None else max_nodes)
     stats["nodes"] = int(nodes)
     return finish(problem, best_idx, "jcbb", stats, budget_exhausted=bool(exhausted),
-                  d2=0.0 if best_k == 0 else best_d2, jc_gates=thresh)
+                  d2=0.0 if best_k == 0 else best_d2)

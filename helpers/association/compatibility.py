@@ -20,16 +20,18 @@ from __future__ import annotations
 import json
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..gaussian import Gaussian, confidence_level
 from ..paths import data_dir
 from ..validation import feature_columns, finite_number, float_array, integer
+from .common import check_hypothesis
 
 __all__ = ["check_bundle_density", "individual_compatibility", "joint_compatibility", "uniform_surprisal",
            "lab_test_fixture"]
 
 
-def check_bundle_density(density, allow_empty: bool = True) -> int:
+def check_bundle_density(density: Gaussian, allow_empty: bool = True) -> int:
     """The number n of landmarks in a feature-bundle density (a ``Gaussian`` of even size 2n); anything else
     raises ValueError naming ``density``. ``allow_empty=False`` also rejects n = 0."""
     if not isinstance(density, Gaussian):
@@ -40,52 +42,37 @@ def check_bundle_density(density, allow_empty: bool = True) -> int:
     return density.size // 2
 
 
-def individual_compatibility(i, j, Y, density: Gaussian, n_sigma: float = 3.0) -> bool:
+def individual_compatibility(i: int, j: int, Y: ArrayLike, density: Gaussian, n_sigma: float = 3.0) -> bool:
     """Whether feature i (column of Y) is individually compatible with selected landmark j (eq 12)."""
     n = check_bundle_density(density)
-    Y = feature_columns(float_array(Y, "Y"), allow_empty=False)
+    Y = feature_columns(Y, allow_empty=False)
     i = integer(i, "i", minimum=0, below=Y.shape[1])
     j = integer(j, "j", minimum=0, below=n)
     return density.marginal([2 * j, 2 * j + 1]).is_within_confidence_region(Y[:, i], n_sigma)
 
 
-def uniform_surprisal(image_size) -> float:
+def uniform_surprisal(image_size: ArrayLike) -> float:
     """s_U = −log U(y) = log W + log H for an image of (width, height) pixels (14.8325 for 1920 × 1440)."""
-    try:
-        size = float_array(image_size, "image_size")
-    except ValueError:
-        size = np.zeros(0)          # reported below with the expected form
-    if size.shape != (2,) or not np.all(np.isfinite(size)) or np.any(size <= 0):
+    size = float_array(image_size, "image_size")
+    if size.shape != (2,) or not np.all(np.isfinite(size) & (size > 0)):
         raise ValueError(f"image_size must be two positive numbers (width, height), got {image_size!r}")
     return float(np.log(float(size[0])) + np.log(float(size[1])))
 
 
-def joint_compatibility(idx, sU, Y, density: Gaussian, n_sigma: float = 3.0):
-    """Joint compatibility and total surprisal of the association ``idx`` (Lab 8 eqs 14–17).
-
-    ``idx`` has one entry per selected landmark: a feature column of Y, or −1 (unassociated); a feature
-    is never associated with two landmarks. An empty scan (Y of shape (2, 0)) allows only idx = all −1.
-    Returns ``(compatible, surprisal)`` with surprisal = n_U·sU − log N(y_A; μ_A, P_A); if nothing is
-    associated, ``(True, n·sU)``.
-    """
+def joint_compatibility(idx: ArrayLike, sU: float, Y: ArrayLike, density: Gaussian,
+                        n_sigma: float = 3.0) -> tuple[bool, float]:
+    """``(compatible, surprisal)`` of the association ``idx`` (Lab 8 eqs 14–17): one entry per selected landmark,
+    a feature column of Y or −1, no feature used twice; surprisal = n_U·sU − log N(y_A; μ_A, P_A), and
+    ``(True, n·sU)`` when nothing is associated."""
     n = check_bundle_density(density)
-    Y = feature_columns(float_array(Y, "Y"))
-    idx_arr = np.asarray(idx)
-    if idx_arr.ndim != 1 or idx_arr.size != n:
-        raise ValueError(f"idx must have one entry per landmark (length {n}), got shape {idx_arr.shape}")
-    if idx_arr.dtype == bool or not np.issubdtype(idx_arr.dtype, np.integer):
-        raise ValueError(f"idx must contain integers (feature index or -1), got dtype {idx_arr.dtype}")
-    if np.any(idx_arr < -1) or np.any(idx_arr >= Y.shape[1]):
-        raise ValueError(f"idx entries must be -1 or a feature index in [0, {Y.shape[1]}): {idx_arr.tolist()}")
-    used = idx_arr[idx_arr >= 0]
-    if np.unique(used).size != used.size:
-        raise ValueError(f"idx gives one feature to several landmarks (only -1 may repeat): {idx_arr.tolist()}")
+    Y = feature_columns(Y)
+    idx_arr = check_hypothesis(idx, n, Y.shape[1], "idx", what="feature")
     sU = finite_number(sU, "sU")
     associated = np.flatnonzero(idx_arr >= 0)
     nA = associated.size
     nU = n - nA
     if nA == 0:
-        confidence_level(n_sigma)  # validates n_sigma
+        confidence_level(n_sigma)  # checks n_sigma
         return True, float(nU * sU)
     rows = (2 * associated[:, None] + np.arange(2)).ravel()
     yA = Y[:, idx_arr[associated]].T.ravel()
@@ -100,14 +87,6 @@ def lab_test_fixture() -> dict:
     and the ready-made densities ``density_1`` (first landmark, size 2) and ``density_3`` (size 6)."""
     raw = json.loads((data_dir() / "lab8_compatibility_fixture.json").read_text(encoding="utf-8"))
     mu, S = np.array(raw["muY"]), np.array(raw["SYY"])
-    return {
-        "mu_Y": mu,
-        "S_YY": S,
-        "Y3": np.array(raw["Y3"]),
-        "Y13": np.array(raw["Y13"]),
-        "n_sigma": float(raw["n_sigma"]),
-        "sU": float(raw["sU"]),
-        "image_size": tuple(raw["image_size"]),
-        "density_1": Gaussian(mu[:2], S[:2, :2]),
-        "density_3": Gaussian(mu, S),
-    }
+    return {"mu_Y": mu, "S_YY": S, "Y3": np.array(raw["Y3"]), "Y13": np.array(raw["Y13"]),
+            "n_sigma": float(raw["n_sigma"]), "sU": float(raw["sU"]), "image_size": tuple(raw["image_size"]),
+            "density_1": Gaussian(mu[:2], S[:2, :2]), "density_3": Gaussian(mu, S)}

@@ -1,23 +1,21 @@
 """Joint compatibility branch and bound (JCBB; Neira & Tardós 2001, lecture L09).
 
-**The interpretation tree.** One level per landmark with at least one individually compatible (IC)
-observation, d²_ki = ν_kiᵀ P_kk⁻¹ ν_ki ≤ χ²_d(c); the most constrained first: fewest IC candidates, ties →
-lower landmark index (:func:`level_order`). Landmarks without a candidate stay unpaired. The children of a
-node H (a pairings) on level t are the unused IC observations i of the level's landmark k whose enlarged
-hypothesis passes the joint gate D²_{H+(k,i)} ≤ χ²_{d(a+1)}(c), nearest first (ties → lower i), then the
-star (k unpaired). The best hypothesis has the most pairings, then the smallest D²_H; a node replaces the
-incumbent Best only when it is strictly better, so of equal hypotheses the first one met wins.
+**The interpretation tree.** One level per landmark with at least one individually compatible (IC) observation,
+d²_ki = ν_kiᵀ P_kk⁻¹ ν_ki ≤ χ²_d(c), the most constrained first: fewest IC candidates, ties → lower landmark
+index (:func:`level_order`). The children of a node H (a pairings) on level t are the unused IC observations i
+of the level's landmark k whose enlarged hypothesis passes the joint gate D²_{H+(k,i)} ≤ χ²_{d(a+1)}(c), nearest
+first (ties → lower i), then the star (k unpaired). The best hypothesis has the most pairings, then the smallest
+D²_H; a node replaces the incumbent Best only when strictly better (of equal hypotheses the first met wins).
 
-**The incremental joint distance** (the lecture: "this test is carried out incrementally"). Given the
-pairings of H, the predictions of the other landmarks are Gaussian with the conditional mean μ_{·|H} and
-covariance Σ_{·|H}. Pairing level t with the observation y updates them like a Kalman filter:
+**The incremental joint distance** (the lecture: "this test is carried out incrementally"). Given the pairings
+of H, the other landmarks' predictions are Gaussian, N(μ_{·|H}, Σ_{·|H}); pairing level t with the observation y
+updates them like a Kalman filter:
 
     Σ_{t|H} = L Lᵀ,   w = L⁻¹ (y − μ_{t|H}),   G = L⁻¹ Σ_{t,·|H},
     D²_{H+} = D²_H + wᵀw,   μ_{·|H+} = μ_{·|H} + Gᵀ w,   Σ_{·|H+} = Σ_{·|H} − GᵀG
 
-(the block row that extends the Cholesky factor of C_H). So every candidate's joint distance is an
-individual distance against the conditional prediction, D²_{H+(q,o)} = D²_H + d²(o | q, H): JC is IC given H.
-D² never decreases along a branch.
+(the block row that extends the Cholesky factor of C_H). So every candidate's joint distance is an individual
+distance against the conditional prediction, D²_{H+(q,o)} = D²_H + d²(o | q, H): JC is IC given H.
 
 **The bound.** A node is cut when no descendant can beat Best: a + possible < pairings(Best), or = and
 D²_H ≥ D²_Best, where ``possible`` bounds the pairings a descendant can still add (:func:`pairings_bound`):
@@ -27,9 +25,9 @@ meets; the i-th pairing added below H must pass χ²_{d(a+i)}, so at most as man
 D²_H + min_o d²(o | q_i, H) ≤ χ²_{d(a+i)}; and when a + possible only ties pairings(Best), a descendant adds
 ``need`` pairings on distinct levels, so its D² is at least the need-th smallest per-level minimum.
 
-The search (:meth:`_Search.visit`) is plain Python. What it computes for every hypothesis — the conditional
-predictions, the candidates' joint distances, the bound — is compiled with numba, as plain loops: notebook 08
-runs the search on thousands of scenes. Gates use c = 2Φ(n_σ) − 1 and ``≤``.
+The search (:meth:`_Search.visit`) is plain Python; what it computes for every hypothesis (the conditional
+predictions, the candidates' joint distances, the bound) is compiled with numba as plain loops: notebook 08 runs
+the search on thousands of scenes. Gates use c = 2Φ(n_σ) − 1 and ``≤``.
 """
 from __future__ import annotations
 
@@ -38,10 +36,11 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from numpy.typing import ArrayLike
 
-from ..gaussian import chi2inv, confidence_level
+from ..gaussian import Gaussian, chi2inv, confidence_level
 from ..validation import boolean, integer
-from .common import Association, empty_association, finish, prepare
+from .common import Association, AssociationProblem, empty_association, finish, prepare
 
 __all__ = ["jcbb", "JCBBTrace", "level_order", "TRACE_EXPANDED", "TRACE_JC_FAIL", "TRACE_BOUND", "TRACE_BEST"]
 
@@ -50,18 +49,12 @@ TRACE_JC_FAIL = 1    #: child rejected by the joint χ² gate (its subtree is ne
 TRACE_BOUND = 2      #: node cut by the bound (cannot beat the incumbent)
 TRACE_BEST = 3       #: node expanded and became the new incumbent Best
 
-_TRACE_STATUS_NAMES = {TRACE_EXPANDED: "expanded", TRACE_JC_FAIL: "jc_fail", TRACE_BOUND: "bound",
-                       TRACE_BEST: "best"}
-
 
 @dataclass(frozen=True)
 class JCBBTrace:
-    """Nodes of the searched interpretation tree, in visiting order (entry 0 is the root).
-
-    parent (int, −1 for the root), level (tree depth − 1 of the choice; −1 root), landmark (−1 root),
-    obs (observation paired at this node, −1 for a star), d2 (joint D² of the node's hypothesis),
-    status (TRACE_* codes); truncated is True when more nodes were visited than recorded.
-    """
+    """Nodes of the searched tree in visiting order (entry 0 is the root, with parent, level and landmark −1):
+    parent, level (depth − 1), landmark, obs (the observation paired at the node, −1 for a star), d2 (D² of the
+    node's hypothesis), status (TRACE_* codes)."""
 
     parent: np.ndarray
     level: np.ndarray
@@ -69,18 +62,11 @@ class JCBBTrace:
     obs: np.ndarray
     d2: np.ndarray
     status: np.ndarray
-    truncated: bool
-
-    def status_name(self, i: int) -> str:
-        return _TRACE_STATUS_NAMES[int(self.status[i])]
 
 
-def level_order(compatible) -> np.ndarray:
+def level_order(compatible: np.ndarray) -> np.ndarray:
     """Landmarks that open a tree level, in visiting order: at least one IC candidate; fewest candidates
     first, ties → lower landmark index. ``compatible``: boolean (n, m) IC matrix."""
-    compatible = np.asarray(compatible)
-    if compatible.ndim != 2 or compatible.dtype != bool:
-        raise ValueError(f"compatible must be a boolean (n, m) matrix, got {compatible.dtype} {compatible.shape}")
     counts = np.count_nonzero(compatible, axis=1)
     lm = np.flatnonzero(counts > 0)
     return lm[np.lexsort((lm, counts[lm]))]
@@ -90,7 +76,7 @@ def level_order(compatible) -> np.ndarray:
 # the numerics of one hypothesis (compiled: plain loops)
 # --------------------------------------------------------------------------------------------------------
 @numba.njit(cache=True)
-def _cholesky(A):
+def _cholesky(A: np.ndarray) -> tuple[np.ndarray, bool]:
     """Lower Cholesky factor L of a small symmetric matrix A (A = L Lᵀ) and whether A is positive definite."""
     d = A.shape[0]
     L = np.zeros((d, d))
@@ -109,7 +95,7 @@ def _cholesky(A):
 
 
 @numba.njit(cache=True)
-def condition_on_pairing(mean, cov, t, y):
+def condition_on_pairing(mean: np.ndarray, cov: np.ndarray, t: int, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The predictions (mean (T, d), cov (T·d, T·d)) conditioned on one more pairing: level t's landmark
     observed at y. Returns new arrays; only the levels after t are updated (the search never reads the others)."""
     T, d = mean.shape
@@ -142,7 +128,8 @@ def condition_on_pairing(mean, cov, t, y):
 
 
 @numba.njit(cache=True)
-def candidate_distances(mean, cov, D2, t, Y, ic, used):
+def candidate_distances(mean: np.ndarray, cov: np.ndarray, D2: float, t: int, Y: np.ndarray, ic: np.ndarray,
+                        used: np.ndarray) -> np.ndarray:
     """cand (T, m): D²_H + d²(o | q, H) for every IC candidate o of every level q ≥ t that is not used in H;
     ∞ elsewhere, and for a level whose conditional covariance is not positive definite (round-off)."""
     T, d = mean.shape
@@ -168,7 +155,8 @@ def candidate_distances(mean, cov, D2, t, Y, ic, used):
 
 
 @numba.njit(cache=True)
-def pairings_bound(cand, t, a, D2, used, last_level, gates, best_a, best_d2):
+def pairings_bound(cand: np.ndarray, t: int, a: int, D2: float, used: np.ndarray, last_level: np.ndarray,
+                   gates: np.ndarray, best_a: int, best_d2: float) -> int:
     """Upper bound on the pairings a descendant of the node (level t, H with a pairings and distance D2) can
     still add (module docstring), or −1 when even a tie in pairings cannot beat D²_Best.
     last_level[o]: the last level that has o as a candidate (−1: none); gates[j] = χ²_{d·j}(c)."""
@@ -205,7 +193,7 @@ def pairings_bound(cand, t, a, D2, used, last_level, gates, best_a, best_d2):
 
 
 @numba.njit(cache=True)
-def nearest_first(d2, gate):
+def nearest_first(d2: np.ndarray, gate: float) -> np.ndarray:
     """The indices i with d2[i] ≤ gate, in ascending d2 (ties → lower i)."""
     passing = np.flatnonzero(d2 <= gate)
     return passing[np.argsort(d2[passing], kind="mergesort")]
@@ -226,7 +214,7 @@ class _Search:
     """One JCBB search: the tree (levels and their IC candidates), the hypothesis H being built (``idx``,
     ``used``) and the incumbent Best; ``nodes`` counts the expanded nodes, ``trace`` records the tree."""
 
-    def __init__(self, problem, levels, max_nodes, trace_capacity):
+    def __init__(self, problem, levels, max_nodes, tracing):
         d, T = problem.d, levels.size
         self.levels, self.T, self.max_nodes = levels, T, max_nodes
         self.Y = np.ascontiguousarray(problem.Y)
@@ -237,15 +225,14 @@ class _Search:
         self.used = np.zeros(problem.m, dtype=bool)     # observations paired in H
         self.best_idx, self.best_a, self.best_d2 = self.idx.copy(), 0, np.inf
         self.nodes, self.exhausted = 0, False
-        self.trace, self.trace_capacity, self.truncated = [], trace_capacity, False
+        self.trace, self.tracing = [], tracing
         rows = (d * levels[:, None] + np.arange(d)).ravel()
         self.mean = np.ascontiguousarray(problem.mu[levels])                      # predictions given H = ∅
         self.cov = np.ascontiguousarray(problem.P[np.ix_(rows, rows)])
 
     def record(self, parent, level, obs, status, d2):
         """Append a trace entry; returns its index (−1: not recorded)."""
-        if len(self.trace) >= self.trace_capacity:
-            self.truncated = self.trace_capacity > 0
+        if not self.tracing:
             return -1
         self.trace.append([parent, level, obs, status, d2])
         return len(self.trace) - 1
@@ -259,7 +246,7 @@ class _Search:
         """The observations level t's landmark can take: the candidates under the joint gate χ²_{d(a+1)},
         nearest first (ties → lower observation); the candidates over it are recorded as JC failures."""
         gate = self.gates[a + 1]
-        if self.trace_capacity:
+        if self.tracing:
             for i in np.flatnonzero((cand[t] > gate) & (cand[t] < np.inf)):
                 self.record(node, t, int(i), TRACE_JC_FAIL, float(cand[t, i]))
         return nearest_first(cand[t], gate).tolist()
@@ -311,37 +298,23 @@ class _Search:
         rows = np.array(self.trace, dtype=float).reshape(-1, 5)
         parent, level, obs, status = (rows[:, c].astype(np.int64) for c in range(4))
         landmark = np.where(level >= 0, self.levels[np.maximum(level, 0)], -1)
-        return JCBBTrace(parent=parent, level=level, landmark=landmark, obs=obs, d2=rows[:, 4], status=status,
-                         truncated=self.truncated)
+        return JCBBTrace(parent=parent, level=level, landmark=landmark, obs=obs, d2=rows[:, 4], status=status)
 
 
-def jcbb(density, Y, n_sigma: float = 3.0, max_nodes: int | None = None, trace: bool = False,
-         trace_capacity: int = 20000) -> Association:
-    """JCBB association (see the module docstring).
-
-    Parameters
-    ----------
-    density : Gaussian of size d·n (predicted measurements of the n landmarks, full cross-covariance), or an
-        ``AssociationProblem`` (then Y is None or its observations)
-    Y : (d, m) observations
-    n_sigma : gate width; IC gate χ²_d(c) and joint gate χ²_{d·a}(c), c = 2Φ(n_σ) − 1 (``≤``)
-    max_nodes : expanded-node budget (None = unlimited); when hit, the best hypothesis so far is returned
-        with ``budget_exhausted=True``
-    trace : record the searched tree in ``stats["trace"]`` (a :class:`JCBBTrace`, at most
-        ``trace_capacity`` entries)
-
-    stats: ``nodes`` (expanded nodes, root included), ``levels`` (landmarks with an IC candidate),
-    ``level_order`` and, with ``trace``, ``trace``.
-    """
+def jcbb(density: Gaussian | AssociationProblem, Y: ArrayLike | None, n_sigma: float = 3.0,
+         max_nodes: int | None = None, trace: bool = False) -> Association:
+    """JCBB association (module docstring) with the gates of ``n_sigma``. ``max_nodes``: expanded-node budget
+    (None: unlimited); when hit, the best hypothesis so far is returned with ``budget_exhausted``. ``trace``:
+    record the searched tree in ``stats["trace"]`` (a :class:`JCBBTrace`). stats: ``nodes`` (expanded, root
+    included), ``levels`` (landmarks with an IC candidate) and ``level_order``."""
     max_nodes = integer(max_nodes, "max_nodes", minimum=1, allow_none=True)
     trace = boolean(trace, "trace")
-    trace_capacity = integer(trace_capacity, "trace_capacity", minimum=1)
     problem = prepare(density, Y, n_sigma)
     levels = level_order(problem.ic_d2 <= problem.ic_threshold)
     stats = {"nodes": 1, "levels": int(levels.size), "level_order": levels}
     if levels.size == 0:
         return empty_association(problem, "jcbb", stats)
-    search = _Search(problem, levels, max_nodes, trace_capacity if trace else 0)
+    search = _Search(problem, levels, max_nodes, trace)
     search.run()
     stats["nodes"] = search.nodes
     if trace:

@@ -1,30 +1,24 @@
 """New landmarks need confirmation over several observations (lecture L09, Mahalanobis NN).
 
-An observation that no mapped landmark explains may be a new landmark — or clutter. Adding it to the map
-at once puts every spurious detection into the map for good. Instead it becomes a *tentative* landmark:
+An observation that no mapped landmark explains may be a new landmark, or clutter: added to the map at once,
+every spurious detection stays there for good. Instead it starts a *tentative* landmark. Each later frame, the
+observations the map does not explain are associated with the tentative landmarks (Mahalanobis NN, χ² gate); a
+re-observed one gains a hit and its estimate becomes the mean of its observations (covariance R / hits). After
+``n_confirm`` hits it is **confirmed** and joins the map; after ``n_miss`` consecutive frames without a hit it is
+**dropped** (a real landmark is seen again while the robot is near it, clutter is not).
 
-- each later frame, observations not explained by the map are associated (Mahalanobis NN, χ² gate) with
-  the tentative landmarks; a tentative landmark that is re-observed gains a hit and its
-  position estimate becomes the mean of its observations (covariance R / hits);
-- after ``n_confirm`` hits it is **confirmed** and joins the map;
-- after ``n_miss`` consecutive frames without being re-observed it is **dropped** (a landmark that is
-  really there is seen again while the robot is near it; clutter is not);
-- observations explained by neither start new tentative landmarks.
-
-:func:`confirmation_sequence` draws a small seeded sequence for this: a robot driving along a straight
-line with a *known pose* (so the only question is the confirmation rule), a map that holds some of the
-landmarks, the others new, and clutter uniform in the sensed disc every frame. Observations are world-frame
-points with isotropic noise σ.
+:func:`confirmation_sequence` draws a seeded sequence: a robot driving straight with a *known pose*, a map that
+holds some of the landmarks, and clutter uniform in the sensed disc; world-frame points with noise σ.
 """
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import block_diag
 
 from ..gaussian import Gaussian, confidence_level
-from ..validation import integer, positive_number, rng_seed
+from ..validation import integer, positive_number, probability, rng_seed
 from .nearest_neighbour import mahalanobis_nn
 
 __all__ = ["ConfirmationSequence", "Track", "confirmation_sequence", "confirm_landmarks"]
@@ -32,9 +26,8 @@ __all__ = ["ConfirmationSequence", "Track", "confirmation_sequence", "confirm_la
 
 @dataclass(frozen=True)
 class ConfirmationSequence:
-    """robot (T, 2) positions; landmarks (L, 2) true positions; known (L,) True for landmarks in the
-    initial map; frames: list of (2, m_t) observations; sources: list of (m_t,) true landmark of each
-    observation (−1 = clutter); meas_sigma; max_range."""
+    """robot (T, 2) positions; landmarks (L, 2); known (L,): in the initial map; frames: (2, m_t) observations;
+    sources: (m_t,) the landmark behind each observation (−1: clutter)."""
 
     robot: np.ndarray
     landmarks: np.ndarray
@@ -47,9 +40,8 @@ class ConfirmationSequence:
 
 @dataclass
 class Track:
-    """A tentative landmark: ``birth`` frame, observation ``sources`` (true landmark or −1 each), running
-    ``mean`` of its observations, ``hits``, consecutive ``misses``; ``status`` is "tentative",
-    "confirmed" or "dropped", decided at frame ``end``."""
+    """A tentative landmark: ``birth`` frame, ``mean`` of its observations and their ``sources``, ``hits``,
+    consecutive ``misses``; ``status`` "tentative", "confirmed" or "dropped" (at frame ``end``)."""
 
     birth: int
     mean: np.ndarray
@@ -66,26 +58,19 @@ class Track:
         return int(vals[np.argmax(counts)])
 
 
-
-
-
-
-def confirmation_sequence(seed, n_frames: int = 10, n_landmarks: int = 14, n_known: int = 8,
+def confirmation_sequence(seed: int, n_frames: int = 10, n_landmarks: int = 14, n_known: int = 8,
                           n_clutter: int = 2, max_range: float = 6.0, step: float = 1.0,
                           meas_sigma: float = 0.1, p_detect: float = 1.0) -> ConfirmationSequence:
-    """Draw the sequence (see the module docstring). Landmarks are uniform in the strip swept by the
-    sensor (x in [−2, (n_frames − 1)·step + 2] m, |y| ≤ 4 m); the first ``n_known`` are in the map."""
+    """Draw the sequence (module docstring): landmarks uniform in x ∈ [−2, (n_frames − 1)·step + 2] m, |y| ≤ 4 m,
+    the first ``n_known`` in the map."""
     rng = np.random.default_rng(rng_seed(seed))
     n_frames = integer(n_frames, "n_frames", 1)
     n_landmarks = integer(n_landmarks, "n_landmarks", 1)
-    n_known = integer(n_known, "n_known", 0)
-    if n_known > n_landmarks:
-        raise ValueError(f"n_known must be <= n_landmarks = {n_landmarks}, got {n_known}")
+    n_known = integer(n_known, "n_known", minimum=0, below=n_landmarks + 1)
     n_clutter = integer(n_clutter, "n_clutter", 0)
     max_range = positive_number(max_range, "max_range")
     step, meas_sigma = positive_number(step, "step"), positive_number(meas_sigma, "meas_sigma")
-    if isinstance(p_detect, bool) or not isinstance(p_detect, numbers.Real) or not 0.0 <= p_detect <= 1.0:
-        raise ValueError(f"p_detect must be a probability in [0, 1], got {p_detect!r}")
+    p_detect = probability(p_detect, "p_detect")
     robot = np.column_stack([step * np.arange(n_frames), np.zeros(n_frames)])
     x_hi = (n_frames - 1) * step + 2.0
     lm = np.column_stack([rng.uniform(-2.0, x_hi, n_landmarks), rng.uniform(-4.0, 4.0, n_landmarks)])
@@ -107,28 +92,24 @@ def confirmation_sequence(seed, n_frames: int = 10, n_landmarks: int = 14, n_kno
                                 meas_sigma=meas_sigma, max_range=max_range)
 
 
-def _associate(means, covs, Y, n_sigma):
+def _associate(means: list, covs: list, Y: np.ndarray, n_sigma: float) -> np.ndarray:
     """Mahalanobis NN of the columns of Y with landmarks N(means_k, covs_k + R); labels per column."""
     if len(means) == 0 or Y.shape[1] == 0:
         return np.full(Y.shape[1], -1, dtype=np.intp)
-    cov = np.zeros((2 * len(means), 2 * len(means)))
-    for k, c in enumerate(covs):
-        cov[2 * k:2 * k + 2, 2 * k:2 * k + 2] = c
-    return mahalanobis_nn(Gaussian.from_cov(np.ravel(means), cov), Y, n_sigma).observation_labels(Y.shape[1])
+    density = Gaussian.from_cov(np.ravel(means), block_diag(*covs))
+    return mahalanobis_nn(density, Y, n_sigma).observation_labels(Y.shape[1])
 
 
-def confirm_landmarks(seq: ConfirmationSequence, n_confirm: int = 3, n_miss: int = 2, n_sigma: float = 3.0):
-    """Run the confirmation rule over the sequence (see the module docstring).
-
-    Returns (tracks, map_sources): every :class:`Track` ever started, in birth order, and for every entry
-    of the final map the landmark it came from (known landmarks first, then confirmed tracks; a confirmed
-    clutter track has source −1). ``n_confirm = 1`` adds every unexplained observation at once.
-    """
+def confirm_landmarks(seq: ConfirmationSequence, n_confirm: int = 3, n_miss: int = 2,
+                      n_sigma: float = 3.0) -> tuple[list[Track], np.ndarray]:
+    """Run the confirmation rule (module docstring; ``n_confirm = 1`` maps every unexplained observation at once).
+    Returns every :class:`Track` started (birth order) and, per entry of the final map, the landmark it came from
+    (the known landmarks first, then the confirmed tracks; −1 for a confirmed clutter track)."""
     if not isinstance(seq, ConfirmationSequence):
         raise ValueError(f"seq must be a ConfirmationSequence (confirmation_sequence), got {type(seq).__name__}")
     n_confirm = integer(n_confirm, "n_confirm", 1)
     n_miss = integer(n_miss, "n_miss", 1)
-    confidence_level(n_sigma)                               # validates n_sigma before any frame is processed
+    confidence_level(n_sigma)                               # checks n_sigma before any frame is processed
     R = seq.meas_sigma ** 2 * np.eye(2)
     map_mean = [p for p in seq.landmarks[seq.known]]
     map_cov = [R.copy() for _ in map_mean]                  # map landmarks: known to about σ

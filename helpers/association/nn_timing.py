@@ -1,57 +1,31 @@
 """The O(K·N) cost of nearest-neighbour association, measured (lecture L09).
 
-The lecture's nearest neighbour is a double loop — for each of the K observations, for each of the N
-landmarks, one distance — so its cost grows with K·N. :func:`per_observation_nn` is that loop with the
-Mahalanobis distance, vectorised over all K·N pairs:
+The lecture's nearest neighbour is a double loop over the K observations and the N landmarks, so its cost grows
+with K·N. :func:`per_observation_nn` is that loop with the Mahalanobis distance, vectorised over all pairs:
 
-    d²_ji = ν_jiᵀ S_j⁻¹ ν_ji,  ν_ji = z^i − ẑ_j,   c^i = argmin_j d²_ji  (−1 if d²_ji > gate).
+    d²_ji = ν_jiᵀ S_j⁻¹ ν_ji,  ν_ji = z^i − ẑ_j,   c^i = argmin_j d²_ji  (−1 if d²_ji > gate),
 
-It works from the landmarks' own innovation covariances S_j (N × 2 × 2), the data NN needs; it is
-independent per observation, so two observations may take the same landmark. :func:`time_nn` times it on
-random problems over a grid of (K, N); :func:`loglog_slope` fits log t = p log(K·N) + b — p ≈ 1 is the
-O(K·N) law.
+each observation on its own (two may take the same landmark). :func:`time_nn` times it over a grid of (K, N) and
+:func:`loglog_slope` fits log t = p log(K·N) + b: p ≈ 1 is the O(K·N) law.
 """
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..timing import best_of
-from ..validation import float_array, rng_seed
+from ..validation import float_array, int_array, integer, positive_number, rng_seed
 
-__all__ = ["inverse_2x2", "pair_distances", "per_observation_nn", "random_nn_problem", "time_nn", "loglog_slope"]
-
-
-def _check(mu, S, Y):
-    mu, S, Y = (float_array(a, name) for a, name in ((mu, "mu"), (S, "S"), (Y, "Y")))
-    if mu.ndim != 2 or mu.shape[1] != 2:
-        raise ValueError(f"mu must have shape (N, 2), got {mu.shape}")
-    if S.shape != (mu.shape[0], 2, 2):
-        raise ValueError(f"S must have shape (N, 2, 2) = {(mu.shape[0], 2, 2)}, got {S.shape}")
-    if Y.ndim != 2 or Y.shape[0] != 2:
-        raise ValueError(f"Y must have shape (2, K), got {Y.shape}")
-    for name, a in (("mu", mu), ("S", S), ("Y", Y)):
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"{name} must be finite (no NaN/inf)")
-    return mu, S, Y
+__all__ = ["inverse_2x2", "pair_distances", "per_observation_nn", "time_nn", "loglog_slope"]
 
 
-def inverse_2x2(S):
-    """(a, b, c) with S_j⁻¹ = [[a_j, b_j], [b_j, c_j]] for every 2×2 innovation covariance (closed form).
-    S must be (N, 2, 2), finite, symmetric and positive definite (ValueError naming ``S``)."""
-    S = float_array(S, "S")
-    if S.ndim != 3 or S.shape[1:] != (2, 2) or not np.all(np.isfinite(S)):
-        raise ValueError(f"S must be a finite (N, 2, 2) array of covariances, got shape {S.shape}")
-    if not np.allclose(S[:, 0, 1], S[:, 1, 0], rtol=1e-10, atol=0.0):
-        raise ValueError("S: every innovation covariance must be symmetric")
+def inverse_2x2(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(a, b, c) with S_j⁻¹ = [[a_j, b_j], [b_j, c_j]] for symmetric positive-definite S (N, 2, 2), closed form."""
     det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] * S[:, 1, 0]
-    if np.any(det <= 0) or np.any(S[:, 0, 0] <= 0):
-        raise ValueError("S: every innovation covariance must be positive definite")
     return S[:, 1, 1] / det, -0.5 * (S[:, 0, 1] + S[:, 1, 0]) / det, S[:, 0, 0] / det
 
 
-def pair_distances(inv, mu, Y):
+def pair_distances(inv: tuple[np.ndarray, np.ndarray, np.ndarray], mu: np.ndarray, Y: np.ndarray) -> np.ndarray:
     """d² with one row per observation (columns of Y) and one column per landmark."""
     a, b, c = inv
     dx = Y[0][:, None] - mu[:, 0][None, :]
@@ -59,25 +33,33 @@ def pair_distances(inv, mu, Y):
     return a * dx * dx + 2.0 * b * dx * dy + c * dy * dy
 
 
-def per_observation_nn(mu, S, Y, gate: float | None = None, block_pairs: int = 16384) -> np.ndarray:
+def per_observation_nn(mu: ArrayLike, S: ArrayLike, Y: ArrayLike, gate: float | None = None,
+                       block_pairs: int = 16384) -> np.ndarray:
     """c^i = argmin_j d²_ji for every observation (ties → lower j), −1 if above ``gate`` or N = 0.
 
-    The lecture's loop over observations, each against all N landmarks; the observations are taken in
-    blocks of about ``block_pairs`` (observation, landmark) pairs so the working arrays stay in the CPU
-    cache whatever K and N are.
+    mu (N, 2) predicted observations, S (N, 2, 2) their innovation covariances (symmetric positive definite),
+    Y (2, K) observations. The observations are taken in blocks of about ``block_pairs`` (observation,
+    landmark) pairs, so the working arrays stay in the CPU cache whatever K and N are.
     """
-    if gate is not None and (isinstance(gate, bool) or not isinstance(gate, numbers.Real) or not gate > 0):
-        raise ValueError(f"gate must be a positive number or None, got {gate!r}")
-    if isinstance(block_pairs, bool) or not isinstance(block_pairs, numbers.Integral) or block_pairs < 1:
-        raise ValueError(f"block_pairs must be a positive integer, got {block_pairs!r}")
-    mu, S, Y = _check(mu, S, Y)
-    N, K = mu.shape[0], Y.shape[1]
-    labels = np.full(K, -1, dtype=np.intp)
+    gate = None if gate is None else positive_number(gate, "gate")
+    block_pairs = integer(block_pairs, "block_pairs", minimum=1)
+    mu, S, Y = float_array(mu, "mu"), float_array(S, "S"), float_array(Y, "Y")
+    N = len(mu) if mu.ndim else -1
+    if mu.shape != (N, 2) or S.shape != (N, 2, 2) or Y.ndim != 2 or Y.shape[0] != 2:
+        raise ValueError(f"mu, S and Y must have shapes (N, 2), (N, 2, 2) and (2, K), got {mu.shape}, {S.shape} "
+                         f"and {Y.shape}")
+    for name, arr in (("mu", mu), ("S", S), ("Y", Y)):
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} must be finite (no NaN/inf)")
+    if not np.allclose(S[:, 0, 1], S[:, 1, 0], rtol=1e-10, atol=0.0) or np.any(S[:, 0, 0] <= 0) \
+            or np.any(np.linalg.det(S) <= 0):
+        raise ValueError("S: every innovation covariance must be symmetric positive definite")
+    labels = np.full(Y.shape[1], -1, dtype=np.intp)
     if N == 0:
         return labels
     inv = inverse_2x2(S)
-    step = max(1, int(block_pairs) // N)
-    for start in range(0, K, step):
+    step = max(1, block_pairs // N)
+    for start in range(0, Y.shape[1], step):
         d2 = pair_distances(inv, mu, Y[:, start:start + step])             # (block, N): observation × landmark
         j = np.argmin(d2, axis=1)
         if gate is not None:
@@ -86,14 +68,8 @@ def per_observation_nn(mu, S, Y, gate: float | None = None, block_pairs: int = 1
     return labels
 
 
-def random_nn_problem(rng, n_landmarks: int, n_observations: int):
-    """(mu, S, Y): N landmarks uniform in a 100 m square with random SPD 2×2 innovation covariances, and K
-    observations uniform in the same square. ``rng``: a numpy Generator."""
-    if not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
-    for name, v in (("n_landmarks", n_landmarks), ("n_observations", n_observations)):
-        if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:
-            raise ValueError(f"{name} must be a positive integer, got {v!r}")
+def _random_problem(rng: np.random.Generator, n_landmarks: int, n_observations: int) -> tuple:
+    """(mu, S, Y): N landmarks and K observations uniform in a 100 m square, random SPD covariances S."""
     mu = rng.uniform(0.0, 100.0, (n_landmarks, 2))
     A = rng.normal(0.0, 0.5, (n_landmarks, 2, 2))
     S = A @ np.swapaxes(A, 1, 2) + 0.01 * np.eye(2)
@@ -101,31 +77,25 @@ def random_nn_problem(rng, n_landmarks: int, n_observations: int):
     return mu, S, Y
 
 
-def time_nn(Ks, Ns, seed: int = 0, repeats: int = 5):
-    """Best-of-``repeats`` wall time [s] of :func:`per_observation_nn` for every (K, N) of the grid.
-
-    Returns (K, N, seconds) as flat arrays of equal length (K varies fastest within each N).
-    """
-    if isinstance(repeats, bool) or not isinstance(repeats, numbers.Integral) or repeats < 1:
-        raise ValueError(f"repeats must be a positive integer, got {repeats!r}")
+def time_nn(Ks: ArrayLike, Ns: ArrayLike, seed: int = 0, repeats: int = 5) -> tuple[np.ndarray, ...]:
+    """Best-of-``repeats`` wall time [s] of :func:`per_observation_nn` on a random problem for every (K, N) of
+    the grid. Returns (K, N, seconds) as flat arrays of equal length (K varies fastest within each N)."""
+    repeats = integer(repeats, "repeats", minimum=1)
+    Ks, Ns = int_array(Ks, "Ks"), int_array(Ns, "Ns")
     for name, grid in (("Ks", Ks), ("Ns", Ns)):
-        arr = np.asarray(grid)
-        if arr.ndim != 1 or arr.size == 0 or arr.dtype == bool or not np.issubdtype(arr.dtype, np.integer) \
-                or np.any(arr < 1):
-            raise ValueError(f"{name} must be a non-empty list of positive integers, got {grid!r}")
+        if grid.size == 0 or np.any(grid < 1):
+            raise ValueError(f"{name} must be a non-empty list of positive integers, got {grid.tolist()}")
     rng = np.random.default_rng(rng_seed(seed))
-    out_k, out_n, out_t = [], [], []
-    for n in Ns:
-        for k in Ks:
-            mu, S, Y = random_nn_problem(rng, int(n), int(k))
-            _, best = best_of(int(repeats), per_observation_nn, mu, S, Y)
-            out_k.append(int(k))
-            out_n.append(int(n))
-            out_t.append(best)
-    return np.array(out_k), np.array(out_n), np.array(out_t)
+    out = []
+    for n in Ns.tolist():
+        for k in Ks.tolist():
+            mu, S, Y = _random_problem(rng, n, k)
+            out.append((k, n, best_of(repeats, per_observation_nn, mu, S, Y)[1]))
+    K, N, t = np.array(out).T
+    return K.astype(int), N.astype(int), t
 
 
-def loglog_slope(x, y) -> float:
+def loglog_slope(x: ArrayLike, y: ArrayLike) -> float:
     """Least-squares slope p of log y = p log x + b (x, y positive, at least two distinct x)."""
     x, y = float_array(x, "x"), float_array(y, "y")
     if x.shape != y.shape or x.ndim != 1 or not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))) \

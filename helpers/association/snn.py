@@ -6,16 +6,15 @@ or −1) greedily, landmark by landmark in selection order:
 
     s(idx) = n_U·s_U − log N(y_A; μ_A, P_A)          (total surprisal, s_U = log W + log H)
 
-1. Start from "nothing associated": s = n·s_U.
-2. For landmark j = 0 … n−1 (never revisited): among the features not taken by an earlier landmark and
-   individually compatible with j (the gate of eq 12 for every pair at once: d²_ji ≤ χ²₂(c), from
-   ``prepare``), pick the one whose pairing changes the surprisal least, Δs = s(idx ∪ {j ↦ i}) − s(idx);
-   ties go to the lowest feature index. Keep it iff Δs ≤ 0 (the null hypothesis "j unassociated" has
-   Δs = 0 and wins only when strictly better). With ``enforce_joint_compatibility`` a candidate must also
-   pass the joint gate wᵀw ≤ χ²_{2(n_A+1)}(c) on the enlarged association.
+Starting from "nothing associated" (s = n·s_U), each landmark j = 0 … n−1 in turn (never revisited) considers
+the features not taken by an earlier landmark and individually compatible with it (eq 12, d²_ji ≤ χ²₂(c), from
+``prepare``) and picks the one whose pairing changes the surprisal least, Δs = s(idx ∪ {j ↦ i}) − s(idx) (ties →
+lowest feature index); it keeps it iff Δs ≤ 0 (the null hypothesis "j unassociated" has Δs = 0 and wins only when
+strictly better). With ``enforce_joint_compatibility`` a candidate must also pass the joint gate
+wᵀw ≤ χ²_{2(n_A+1)}(c) of the enlarged association.
 
-Δs of all candidates of landmark j at once: order the associated landmarks A first and j last, and factor
-the marginal of the bundle over those rows by one QR, S[:, rows] = Q [[R11, R12], [0, R22]]. Then
+Δs of all candidates of landmark j at once: order the associated landmarks A first and j last, and factor the
+marginal of the bundle over those rows by one QR, S[:, rows] = Q [[R11, R12], [0, R22]]. Then
 
     log N(y_A, y; μ, P) = log N(y_A; μ_A, R11ᵀR11) + log N(y; μ_{j|A}, R22ᵀR22),
     μ_{j|A} = μ_j + R12ᵀ w_A,   R11ᵀ w_A = y_A − μ_A,
@@ -30,10 +29,11 @@ association (the lab's eqs 14–17, evaluated once).
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import linalg
 
-from ..gaussian import chi2inv, confidence_level, square_r_factor
-from ..validation import boolean, feature_columns, finite_number, float_array
+from ..gaussian import Gaussian, square_r_factor
+from ..validation import boolean, feature_columns, finite_number
 from .common import prepare
 from .compatibility import check_bundle_density, joint_compatibility
 
@@ -42,7 +42,8 @@ __all__ = ["snn"]
 _LOG_2PI = float(np.log(2.0 * np.pi))
 
 
-def _surprisal_changes(density, Y, idx, j, cand, sU):
+def _surprisal_changes(density: Gaussian, Y: np.ndarray, idx: np.ndarray, j: int, cand: np.ndarray,
+                       sU: float) -> tuple[np.ndarray, np.ndarray]:
     """(Δs, joint wᵀw) of pairing landmark j with each candidate feature (columns ``cand`` of Y), given the
     pairings ``idx`` of the landmarks before j (module docstring)."""
     mu = density.mean
@@ -66,41 +67,32 @@ def _surprisal_changes(density, Y, idx, j, cand, sU):
     return -sU + _LOG_2PI + np.log(abs(R22[0, 0] * R22[1, 1])) + 0.5 * v2, dA2 + v2
 
 
-def snn(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool = False):
-    """Surprisal nearest neighbour association (module docstring).
+def snn(density: Gaussian, Y: ArrayLike, sU: float, n_sigma: float = 3.0,
+        enforce_joint_compatibility: bool = False) -> tuple[np.ndarray, float]:
+    """Surprisal nearest neighbour association (module docstring) of the n selected landmarks of the bundle
+    ``density`` (size 2n, no measurement noise in the lab) with the features Y (2, m; m = 0 allowed), with the
+    surprisal sU = log W + log H of an unassociated landmark (``uniform_surprisal``), gate width ``n_sigma`` (3 in
+    the lab), and with ``enforce_joint_compatibility`` also the joint gate.
 
-    Parameters
-    ----------
-    density : Gaussian of size 2n — the predicted feature-bundle density of the n selected landmarks
-        (no measurement noise in the lab); landmark k of the selection in rows 2k, 2k+1.
-    Y : (2, m) feature pixel coordinates (m = 0 allowed: then nothing can be associated).
-    sU : surprisal of an unassociated landmark, log W + log H (``uniform_surprisal(image_size)``).
-    n_sigma : gate width (3 in the lab). enforce_joint_compatibility : also require the joint gate.
-
-    Returns
-    -------
-    idx : (n,) int array, idx[k] = feature column associated with selected landmark k, or −1.
-    surprisal : float, total surprisal s(idx) of the returned association.
+    Returns (idx, surprisal): idx (n,) the feature column of each selected landmark or −1, and s(idx).
     """
-    check_bundle_density(density, allow_empty=False)
-    Y = feature_columns(float_array(Y, "Y"))
+    n = check_bundle_density(density, allow_empty=False)
+    Y = feature_columns(Y)
     sU = finite_number(sU, "sU")
     enforce = boolean(enforce_joint_compatibility, "enforce_joint_compatibility")
-    c = confidence_level(n_sigma)
-    n, m = density.size // 2, Y.shape[1]
-    idx = np.full(n, -1, dtype=np.intp)
-    if m == 0:
-        return idx, n * sU
     problem = prepare(density, Y, n_sigma)
     compatible = problem.ic_d2 <= problem.ic_threshold               # (n, m): eq 12 for every pair
-    taken = np.zeros(m, dtype=bool)
+    idx = np.full(n, -1, dtype=np.intp)
+    if Y.shape[1] == 0:
+        return idx, n * sU
+    taken = np.zeros(Y.shape[1], dtype=bool)
     for j in range(n):                                               # loop over landmarks, not features
         cand = np.flatnonzero(compatible[j] & ~taken)                # ascending feature index
         if cand.size == 0:
             continue
         ds, joint = _surprisal_changes(density, Y, idx, j, cand, sU)
         if enforce:
-            ok = joint <= chi2inv(c, 2 * (np.count_nonzero(idx >= 0) + 1))
+            ok = joint <= problem.jc_threshold(np.count_nonzero(idx >= 0) + 1)
             cand, ds = cand[ok], ds[ok]
             if cand.size == 0:
                 continue
@@ -108,5 +100,4 @@ def snn(density, Y, sU, n_sigma: float = 3.0, enforce_joint_compatibility: bool 
         if ds[best] <= 0.0:                                          # null hypothesis only if strictly better
             idx[j] = cand[best]
             taken[cand[best]] = True
-    _, s = joint_compatibility(idx, sU, Y, density, n_sigma)          # one exact evaluation of s(idx)
-    return idx, s
+    return idx, joint_compatibility(idx, sU, Y, density, n_sigma)[1]    # one exact evaluation of s(idx)

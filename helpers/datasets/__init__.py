@@ -1,58 +1,73 @@
-"""Readers for the standard 2D pose-graph / SLAM datasets, and ``load_dataset`` for the copies in ``data/datasets``.
+"""Readers for the standard 2-D pose-graph datasets, and the copies shipped in ``data/datasets`` by name.
 
-The datasets the workbook ships (every 2-D graph file of GTSAM's ``gtsam/Data`` that GTSAM reads, e.g. W100,
-W10000, Victoria Park, example.graph; list, origin and licence in ``data/README.md``) are gzipped in
-``data/datasets/`` and load by name: ``load_dataset(name)`` for ``name`` in ``sorted(DATASETS)``. Every reader
-also takes plain or gzip files (gzip is recognised by its magic bytes).
+``read_dataset(name)`` / ``load_dataset(name)`` for ``name`` in ``sorted(DATASETS)`` (GTSAM's 2-D example files:
+W100, W10000, Victoria Park, …; origin and licence in ``data/README.md``). Readers take plain or gzip files.
 
-Formats (strict: anything else raises DatasetFormatError, a ValueError naming the file and the 1-based line):
+Formats (anything else raises DatasetFormatError, a ValueError naming the file and the 1-based line):
 
-TORO ``.graph``   VERTEX2 id x y θ
-                  EDGE2 i j dx dy dθ I11 I12 I22 I33 I13 I23      (information, TORO order; see layout below)
-                  EQUIV i j                                        (ignored, as GTSAM does)
-                  BR pose landmark bearing range σ_bearing σ_range (GTSAM's example.graph)
-2D g2o            VERTEX_SE2 id x y θ;  VERTEX_XY id x y;  FIX id
-                  EDGE_SE2 i j dx dy dθ I11 I12 I13 I22 I23 I33    (information, upper triangle row-major)
-                  EDGE_SE2_XY i j dx dy I11 I12 I22                (point in the frame of pose i)
-                  LANDMARK2 pose landmark dx dy I11 I12 I22        (as EDGE_SE2_XY; GTSAM's cityTrees /
-                                                                    victoriaPark_reduced_1k files)
-                  VERTEX2, EDGE2                                   (TORO's records, as in GTSAM's w100_30.g2o)
-victoria_park     ODOMETRY i j dx dy dθ c_xx c_xy c_xθ c_yy c_yθ c_θθ   (covariance)
-                  LANDMARK i l x y c_xx c_xy c_yy                  (Cartesian, in the frame of pose i)
+TORO ``.graph``   VERTEX2 id x y θ;  EDGE2 i j dx dy dθ I11 I12 I22 I33 I13 I23;  EQUIV i j (ignored);
+                  BR pose landmark bearing range σ_bearing σ_range
+2D g2o            VERTEX_SE2 id x y θ;  VERTEX_XY id x y;  FIX id;  EDGE_SE2 i j dx dy dθ I11 I12 I13 I22 I23 I33;
+                  EDGE_SE2_XY i j dx dy I11 I12 I22;  LANDMARK2 (as EDGE_SE2_XY, own id space);  VERTEX2, EDGE2
+victoria_park     ODOMETRY i j dx dy dθ c_xx c_xy c_xθ c_yy c_yθ c_θθ  (covariance);
+                  LANDMARK i l x y c_xx c_xy c_yy                      (Cartesian, in the frame of pose i)
 
-Conventions follow GTSAM (``gtsam.readG2o`` / ``gtsam.load2D``) so that χ² values compare one to one
-(χ² = 2 × GTSAM's error):
-- relative pose measurements become ``EdgeSE2`` (GTSAM's BetweenFactor error);
-- EDGE2 information layout: TORO order, unless the file's EDGE2 matrices are all diagonal in g2o order
-  (I11 0 0 I22 0 I33: the pattern GTSAM's NoiseFormatAUTO recognises; w100_30.g2o, w20000.txt), then g2o order.
-  The six numbers are information (as readG2o and both formats say); a file mixing the two patterns is an error;
-- a LANDMARK (x, y) becomes a range-bearing edge with z = (hypot(x, y), atan2(y, x)), σ_range = √c_xx and
-  σ_bearing = √(c_xx / 10) (load2D's rule, which needs an isotropic covariance: c_xy = 0 and |c_xx − c_yy| < 1e-4,
-  else an error, where load2D would silently use σ = 1); a BR line gives z = (range, bearing) with its own sigmas;
-- LANDMARK2 / EDGE_SE2_XY become ``EdgeSE2PointXY``. GTSAM's readG2o ignores LANDMARK2 lines (its graph of the
-  cityTrees / victoriaPark_reduced files has the poses only);
-- initial poses are the VERTEX lines; poses without one are composed from the relative-pose edges in file order
-  (the first pose at the origin), with further passes for edges met before either end had a value; a landmark
-  starts at its first observation, pose ⊞ (measurement);
-- the lowest-id pose is fixed (GTSAM puts a prior on it instead), or the FIX vertices of a g2o file.
-
-Decisions on records that are legal but suspicious (each tested):
-- duplicate vertex ids (VERTEX2, VERTEX_SE2, VERTEX_XY; g2o vertices share one id space): error (GTSAM too);
-- duplicate edges (same ends, even the same numbers): allowed — independent measurements, as in g2o and GTSAM;
-- an edge from a vertex to itself: error; a relative-pose edge touching a g2o point, a point edge ending at a pose:
-  error; FIX of an id that no vertex or edge of the file has: error (FIX twice: allowed, idempotent);
-- LANDMARK2 landmarks have their own id space (GTSAM's L(j)), so a file may not mix them with g2o points;
-- a pose that no VERTEX line or chain of relative-pose edges reaches: error (GTSAM would put it at the origin);
-- a BR range ≤ 0 or a LANDMARK at (0, 0): error (bearing undefined); EQUIV: ignored; any other tag: error
-  (GTSAM and g2o skip unknown tags, which would give a partial graph silently); ``#`` lines: comments;
-- a plain file whose last line has no newline: error (a truncated copy; gzip files are checked by their CRC).
+Conventions follow GTSAM (``readG2o`` / ``load2D``), so χ² values compare one to one (χ² = 2 × GTSAM's error):
+relative poses become ``EdgeSE2``; EDGE2 information is in TORO order unless every matrix of the file is diagonal
+in g2o order; a LANDMARK becomes a range-bearing edge with σ_range = √c_xx, σ_bearing = √(c_xx / 10) (an isotropic
+covariance is required); LANDMARK2 / EDGE_SE2_XY become ``EdgeSE2PointXY``. Poses without a VERTEX line are
+composed from the relative-pose edges, a landmark starts at its first observation, and the lowest-id pose is fixed
+(or the FIX vertices). Duplicate vertex ids, self-loops, unreachable poses, unknown tags and a plain file whose last
+line has no newline (a truncated copy) are errors; duplicate edges are independent measurements.
 """
+from __future__ import annotations
 
-from .catalogue import DATASETS, dataset_path, load_dataset, read_dataset
+import pathlib
+
+from ..graph import SparseOptimizer, VertexSE2
+from ..paths import data_path
 from .graph_data import GraphData, build_optimizer, pose_arrays
+from .readers import read_g2o, read_toro, read_victoria_park
 from .records import DatasetFormatError
-from .toro_g2o import read_g2o, read_toro
-from .victoria_park import read_victoria_park
 
 __all__ = ["GraphData", "DatasetFormatError", "read_toro", "read_g2o", "read_victoria_park", "dataset_path",
            "read_dataset", "load_dataset", "build_optimizer", "pose_arrays", "DATASETS"]
+
+#: name -> (file in data/datasets, reader of its format); the name is the file's stem in GTSAM's ``gtsam/Data``
+_FILES = {"w100": ("w100.graph.gz", read_toro), "w10000": ("w10000.graph.gz", read_toro),
+          "example": ("example.graph.gz", read_toro), "w20000": ("w20000.txt.gz", read_toro),
+          "victoria_park": ("victoria_park.txt.gz", read_victoria_park), "w100_30": ("w100_30.g2o.gz", read_g2o),
+          "cityTrees_reduced_1k": ("cityTrees_reduced_1k.g2o.gz", read_g2o),
+          "victoriaPark_reduced_1k": ("victoriaPark_reduced_1k.g2o.gz", read_g2o),
+          "noisyToyGraph": ("noisyToyGraph.txt.gz", read_g2o),
+          "optimizedNoisyToyGraph": ("optimizedNoisyToyGraph.txt.gz", read_g2o),
+          "orientationsNoisyToyGraph": ("orientationsNoisyToyGraph.txt.gz", read_g2o),
+          "pose2example": ("pose2example.txt.gz", read_g2o)}
+#: name -> file in data/datasets (origin and licence: data/README.md)
+DATASETS = {name: file for name, (file, _) in _FILES.items()}
+
+
+def _known(name: str) -> str:
+    if not isinstance(name, str):
+        raise ValueError(f"name must be a dataset name (a str), got {name!r}; expected one of {sorted(DATASETS)}")
+    if name not in DATASETS:
+        raise ValueError(f"unknown dataset {name!r}; expected one of {sorted(DATASETS)}")
+    return name
+
+
+def dataset_path(name: str) -> pathlib.Path:
+    """Full path of a dataset shipped with the workbook (``data/datasets/<file>.gz``)."""
+    return data_path("datasets", DATASETS[_known(name)])
+
+
+def read_dataset(name: str) -> GraphData:
+    """The GraphData of a shipped dataset, read with its format's reader."""
+    return _FILES[_known(name)][1](dataset_path(name))
+
+
+def load_dataset(name: str, pose_class: type = VertexSE2, optimizer_class: type | None = None) -> SparseOptimizer:
+    """A graph (``optimizer_class``, default the course's SparseOptimizer) for a shipped dataset
+    (``sorted(DATASETS)``), first pose fixed (or the file's FIX vertices), structure built."""
+    opt = build_optimizer(read_dataset(name), pose_class=pose_class, optimizer_class=optimizer_class or SparseOptimizer)
+    opt.initialize_optimization()
+    return opt

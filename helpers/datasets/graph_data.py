@@ -1,13 +1,16 @@
 """The parsed dataset (``GraphData``), its initial values, and the optimiser built from it."""
+from __future__ import annotations
+
+import os
 
 import numpy as np
 
 from ..graph import EdgeRangeBearing, EdgeSE2, EdgeSE2PointXY, SparseOptimizer, VertexPointXY, VertexSE2, wrap_angle
 from ..graph.elements import GraphElements
+from ..validation import boolean
 from .records import DatasetFormatError
 
-__all__ = ["GraphData", "build_optimizer", "pose_arrays", "merge_in_file_order", "initial_values",
-           "check_pose_class"]
+__all__ = ["GraphData", "build_optimizer", "pose_arrays", "merge_in_file_order", "initial_values"]
 
 _KINDS = {"se2": "relative-pose", "rb": "range-bearing", "xy": "point"}
 
@@ -20,7 +23,7 @@ class GraphData:
     holds the 1-based line of each edge in the file (the readers fill it; error messages use it).
     """
 
-    def __init__(self, source):
+    def __init__(self, source: str | os.PathLike) -> None:
         self.source = str(source)
         self.poses = {}
         self.points = {}
@@ -28,15 +31,15 @@ class GraphData:
         self.edges = []
         self.edge_lines = []
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         kinds = {}
         for e in self.edges:
             kinds[e[0]] = kinds.get(e[0], 0) + 1
         return f"GraphData({self.source!r}, poses={len(self.poses)}, points={len(self.points)}, edges={kinds})"
 
 
-def merge_in_file_order(data, parts):
-    """parts: list of (line numbers, kind, ij, z, info); edges are appended in file order."""
+def merge_in_file_order(data: GraphData, parts: list[tuple]) -> None:
+    """Append the edges of ``parts`` [(line numbers, kind, ij, z, info), …] to ``data`` in file order."""
     if not parts:
         return
     lines = np.concatenate([p[0] for p in parts])
@@ -49,19 +52,20 @@ def merge_in_file_order(data, parts):
     data.edge_lines.extend(int(lines[i]) for i in order)
 
 
-def _compose(p, z):
+def _compose(p: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """p ∘ z."""
     c, s = np.cos(p[2]), np.sin(p[2])
     return np.array([p[0] + c * z[0] - s * z[1], p[1] + s * z[0] + c * z[1], wrap_angle(p[2] + z[2])])
 
 
-def _compose_inverse(p, z):
+def _compose_inverse(p: np.ndarray, z: np.ndarray) -> np.ndarray:
     """q with q ∘ z = p."""
     th = wrap_angle(p[2] - z[2])
     c, s = np.cos(th), np.sin(th)
     return np.array([p[0] - (c * z[0] - s * z[1]), p[1] - (s * z[0] + c * z[1]), th])
 
 
-def _edge_error(data, t, message):
+def _edge_error(data: GraphData, t: int, message: str) -> DatasetFormatError:
     """DatasetFormatError at edge t's line (when the reader recorded it)."""
     lines = getattr(data, "edge_lines", [])
     line = lines[t] if len(lines) == len(data.edges) else None
@@ -69,42 +73,31 @@ def _edge_error(data, t, message):
     return DatasetFormatError(data.source, line, f"{_KINDS.get(kind, kind)} edge {i} → {j}: {message}")
 
 
-def _compose_missing(data, poses):
-    """Further passes over the relative-pose edges that joined two poses without values, until none resolves."""
-    pending = [t for t, e in enumerate(data.edges) if e[0] == "se2" and (e[1] not in poses or e[2] not in poses)]
-    while pending:
-        still = []
-        for t in pending:
-            _, i, j, z, _ = data.edges[t]
-            if i in poses and j not in poses:
-                poses[j] = _compose(poses[i], z)
-            elif j in poses and i not in poses:
-                poses[i] = _compose_inverse(poses[j], z)
-            elif i not in poses:
-                still.append(t)
-        if len(still) == len(pending):
-            return
-        pending = still
-
-
-def initial_values(data):
-    """(poses, points): the VERTEX values, the other poses composed from the relative-pose edges (in file order,
-    then further passes for edges met before either end had a value), each landmark at its first observation.
+def initial_values(data: GraphData) -> tuple[dict, dict]:
+    """(poses, points): the VERTEX values, the other poses composed from the relative-pose edges (passes in file
+    order until no edge adds a pose; the first pose at the origin when the file has no VERTEX line), each landmark
+    at its first observation.
 
     Raises DatasetFormatError at the first edge whose pose no VERTEX line or chain of relative-pose edges
     reaches (or whose landmark's first observation comes from such a pose).
     """
     poses = dict(data.poses)
     points = dict(data.points)
-    for kind, i, j, z, _ in data.edges:
-        if kind == "se2":
-            if not poses:
-                poses[i] = np.zeros(3)
+    pending = [e[1:4] for e in data.edges if e[0] == "se2"]
+    if pending and not poses:
+        poses[pending[0][0]] = np.zeros(3)
+    while pending:
+        still = []
+        for i, j, z in pending:
             if i in poses and j not in poses:
                 poses[j] = _compose(poses[i], z)
             elif j in poses and i not in poses:
                 poses[i] = _compose_inverse(poses[j], z)
-    _compose_missing(data, poses)
+            elif i not in poses:
+                still.append((i, j, z))
+        if len(still) == len(pending):
+            break
+        pending = still
     unreached = ("has no initial value: no VERTEX line, and no chain of relative-pose edges to a pose that has one")
     for t, (kind, i, j, z, _) in enumerate(data.edges):
         if i not in poses:
@@ -113,37 +106,26 @@ def initial_values(data):
             raise _edge_error(data, t, f"pose {j} {unreached}")
         if kind in ("rb", "xy") and j not in points:
             p = poses[i]
-            if kind == "rb":
-                local = z[0] * np.array([np.cos(z[1]), np.sin(z[1])])
-            else:
-                local = z
+            local = z[0] * np.array([np.cos(z[1]), np.sin(z[1])]) if kind == "rb" else z
             c, s = np.cos(p[2]), np.sin(p[2])
             points[j] = p[:2] + np.array([c * local[0] - s * local[1], s * local[0] + c * local[1]])
     return poses, points
 
 
-def check_pose_class(pose_class):
-    if not (isinstance(pose_class, type) and issubclass(pose_class, VertexSE2)):
-        raise ValueError(f"pose_class must be VertexSE2 or a subclass, got {pose_class!r}")
-
-
-def _check_build_arguments(data, fix_first, pose_class):
+def build_optimizer(data: GraphData, fix_first: bool = True, pose_class: type = VertexSE2,
+                    optimizer_class: type = SparseOptimizer) -> SparseOptimizer:
+    """An ``optimizer_class`` graph (default: the course's SparseOptimizer) holding the dataset (pose vertices
+    ``pose_class``, a VertexSE2 subclass; points VertexPointXY)."""
     if not isinstance(data, GraphData):
         raise ValueError("data must be a GraphData (from read_toro, read_g2o, read_victoria_park or read_dataset), "
                          f"got {type(data).__name__}")
-    if not isinstance(fix_first, (bool, np.bool_)):
-        raise ValueError(f"fix_first must be True or False, got {fix_first!r}")
-    check_pose_class(pose_class)
+    fix_first = boolean(fix_first, "fix_first")
+    if not (isinstance(pose_class, type) and issubclass(pose_class, VertexSE2)):
+        raise ValueError(f"pose_class must be VertexSE2 or a subclass, got {pose_class!r}")
     for t, e in enumerate(data.edges):
         if len(e) != 5 or e[0] not in _KINDS:
             raise ValueError(f"data.edges[{t}] must be (kind, i, j, z, information) with kind one of "
                              f"{sorted(_KINDS)}, got {e!r}")
-
-
-def build_optimizer(data, fix_first=True, pose_class=VertexSE2, optimizer_class=SparseOptimizer):
-    """An ``optimizer_class`` graph (default: the course's SparseOptimizer) holding the dataset (pose vertices
-    ``pose_class``, a VertexSE2 subclass; points VertexPointXY)."""
-    _check_build_arguments(data, fix_first, pose_class)
     if not (isinstance(optimizer_class, type) and issubclass(optimizer_class, GraphElements)):
         raise ValueError(f"optimizer_class must be a graph class (SparseOptimizer or a subclass of GraphElements), "
                          f"got {optimizer_class!r}")
@@ -152,21 +134,14 @@ def build_optimizer(data, fix_first=True, pose_class=VertexSE2, optimizer_class=
         if fid not in poses and fid not in points:
             raise ValueError(f"data.fixed: {fid!r} is neither a pose nor a point id of {data.source}")
     opt = optimizer_class()
-    pv, lv = {}, {}
-    for pid in sorted(poses):
-        v = pose_class(pid, poses[pid])
+    pv = {pid: pose_class(pid, poses[pid]) for pid in sorted(poses)}
+    lv = {lid: VertexPointXY(lid, points[lid]) for lid in sorted(points)}
+    for v in [*pv.values(), *lv.values()]:
         opt.add_vertex(v)
-        pv[pid] = v
-    for lid in sorted(points):
-        v = VertexPointXY(lid, points[lid])
-        opt.add_vertex(v)
-        lv[lid] = v
     kinds = {"se2": (EdgeSE2, pv, pv), "rb": (EdgeRangeBearing, pv, lv), "xy": (EdgeSE2PointXY, pv, lv)}
     grouped = {}
     for kind, i, j, z, info in data.edges:
-        cls, a, b = kinds[kind]
-        if i not in a or j not in b:
-            raise ValueError(f"{data.source}: edge {kind} {i}-{j} refers to an unknown vertex")
+        _, a, b = kinds[kind]
         rows, zs, infos = grouped.setdefault(kind, ([], [], []))
         rows.append((a[i], b[j]))
         zs.append(z)
@@ -181,7 +156,7 @@ def build_optimizer(data, fix_first=True, pose_class=VertexSE2, optimizer_class=
     return opt
 
 
-def pose_arrays(optimizer):
+def pose_arrays(optimizer: SparseOptimizer) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(pose ids, poses (N, 3), point ids, points (M, 2)) of a graph, in creation order."""
     if not isinstance(optimizer, SparseOptimizer):
         raise ValueError(f"optimizer must be a SparseOptimizer, got {type(optimizer).__name__}")

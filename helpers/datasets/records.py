@@ -1,17 +1,18 @@
 """Reading a dataset file into records, the named error, and the checks every format shares.
 
-``scan`` turns a file (plain or gzip) into {tag: (line numbers, (N, k) float array)}. Everything it cannot
-read raises :class:`DatasetFormatError` naming the file and, for a line, its 1-based number: a missing file,
-a directory, unreadable or corrupt gzip data, bytes that are not UTF-8 text, NUL bytes, an empty file, a
-plain file whose last line has no newline (the sign of a truncated copy; gzip data carries its own CRC and
-length, so a ``.gz`` file is checked by those instead), an unknown tag, a wrong number of fields, a field that
-is not a plain decimal number, NaN or ±inf.
+``scan`` turns a file (plain or gzip) into {tag: (line numbers, (N, k) float array)}. What it cannot read raises
+:class:`DatasetFormatError` naming the file and, for a line, its 1-based number: a missing file, corrupt gzip data,
+bytes that are not UTF-8 text, NUL bytes, an empty file, a plain file whose last line has no newline (a truncated
+copy; gzip data has its own CRC), an unknown tag, a wrong number of fields, a field that is not a plain decimal
+number, NaN or ±inf.
 """
+from __future__ import annotations
 
 import gzip
 import os
 import pathlib
 import zlib
+from typing import NoReturn
 
 import numpy as np
 
@@ -33,7 +34,7 @@ class DatasetFormatError(ValueError):
     empty, not text, corrupt gzip data) and ``reason`` what is wrong; the message is ``path:line: reason``.
     """
 
-    def __init__(self, path, line, reason):
+    def __init__(self, path: str | os.PathLike, line: int | None, reason: str) -> None:
         self.path, self.line, self.reason = str(path), line, reason
         where = self.path if line is None else f"{self.path}:{line}"
         super().__init__(f"{where}: {reason}")
@@ -42,11 +43,11 @@ class DatasetFormatError(ValueError):
         return type(self), (self.path, self.line, self.reason)
 
 
-def fail(path, lineno, message):
+def fail(path: str | os.PathLike, lineno: int | None, message: str) -> NoReturn:
     raise DatasetFormatError(path, lineno, message)
 
 
-def _file_bytes(path):
+def _file_bytes(path: str | os.PathLike) -> tuple[bytes, bool]:
     """(raw bytes, was gzip) of an existing regular file; gzip is recognised by its magic bytes."""
     if not isinstance(path, (str, os.PathLike)):
         raise ValueError(f"path must be a file path (str or os.PathLike), got {path!r}")
@@ -69,7 +70,7 @@ def _file_bytes(path):
     return raw, False
 
 
-def _lines(path):
+def _lines(path: str | os.PathLike) -> list[str]:
     """The file's lines (split at \\n, \\r\\n or \\r, as Python's text files do), after the whole-file checks."""
     raw, packed = _file_bytes(path)
     try:
@@ -91,12 +92,7 @@ def _lines(path):
     return lines
 
 
-def _unknown(path, lineno, tag, counts):
-    hint = " (a 3-D record: only 2-D files are read)" if tag in _THREE_D else ""
-    fail(path, lineno, f"unknown record {tag!r}{hint} (expected one of {', '.join(counts)})")
-
-
-def _to_array(path, tag, lines, rows, k):
+def _to_array(path: str | os.PathLike, tag: str, lines: list[int], rows: list[list[str]], k: int) -> np.ndarray:
     """(N, k) floats; on failure the first offending line is reported."""
     try:
         return np.array(rows, dtype=float).reshape(len(rows), k)
@@ -109,7 +105,7 @@ def _to_array(path, tag, lines, rows, k):
         raise
 
 
-def scan(path, counts):
+def scan(path: str | os.PathLike, counts: dict[str, int]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Split a file into records: {tag: (line numbers, (N, counts[tag]) float array)}; strict checks.
 
     Lines that are blank or start with ``#`` are comments. Field counts are checked per line; numbers are
@@ -123,7 +119,8 @@ def scan(path, counts):
             continue
         tag = fields[0]
         if tag not in counts:
-            _unknown(path, lineno, tag, counts)
+            hint = " (a 3-D record: only 2-D files are read)" if tag in _THREE_D else ""
+            fail(path, lineno, f"unknown record {tag!r}{hint} (expected one of {', '.join(counts)})")
         if len(fields) - 1 != counts[tag]:
             fail(path, lineno, f"{tag} needs {counts[tag]} numbers, got {len(fields) - 1}")
         if not line.isascii() or line.count("_") != tag.count("_"):
@@ -140,12 +137,12 @@ def scan(path, counts):
     return out
 
 
-def first_bad(mask):
+def first_bad(mask: np.ndarray) -> int:
     """Index of the first row of ``mask`` (1-D, or 2-D: any column) that is true."""
     return int(np.argmax(mask.any(axis=1) if mask.ndim > 1 else mask))
 
 
-def ids(path, tag, lines, values, what="ids"):
+def ids(path: str | os.PathLike, tag: str, lines: np.ndarray, values: np.ndarray, what: str = "ids") -> np.ndarray:
     """Integer ids (non-negative, exact in a float: below 2**53) as int64."""
     bad = ~((values == np.round(values)) & (values >= 0) & (values < MAX_ID))
     if bad.any():
@@ -153,16 +150,15 @@ def ids(path, tag, lines, values, what="ids"):
     return values.astype(np.int64)
 
 
-def check_spd(path, tag, lines, mats, what="information"):
-    if len(mats) == 0:
-        return
-    eig = np.linalg.eigvalsh(mats).min(axis=1)
-    bad = ~(eig > 0)
+def check_spd(path: str | os.PathLike, tag: str, lines: np.ndarray, mats: np.ndarray,
+              what: str = "information") -> None:
+    """Every matrix of ``mats`` (N, k, k) positive definite."""
+    bad = ~(np.linalg.eigvalsh(mats).min(axis=1) > 0) if len(mats) else np.zeros(0, bool)
     if bad.any():
         fail(path, lines[int(np.argmax(bad))], f"{tag}: {what} matrix is not positive definite")
 
 
-def check_unique(path, what, id_values, lines):
+def check_unique(path: str | os.PathLike, what: str, id_values: np.ndarray, lines: np.ndarray) -> None:
     """No id twice (``lines`` may come from several tags); the error names both lines."""
     id_values, lines = np.asarray(id_values), np.asarray(lines)
     if len(np.unique(id_values)) == len(id_values):
@@ -174,13 +170,16 @@ def check_unique(path, what, id_values, lines):
         seen[key] = line
 
 
-def check_distinct_ends(path, tag, lines, ij):
+def check_distinct_ends(path: str | os.PathLike, tag: str, lines: np.ndarray, ij: np.ndarray) -> None:
+    """No edge from a vertex to itself."""
     same = ij[:, 0] == ij[:, 1]
     if same.any():
         t = int(np.argmax(same))
         fail(path, lines[t], f"{tag}: an edge must join two different vertices, got {ij[t, 0]} → {ij[t, 1]}")
 
 
-def sym3(a11, a12, a13, a22, a23, a33):
+def sym3(a11: np.ndarray, a12: np.ndarray, a13: np.ndarray, a22: np.ndarray, a23: np.ndarray,
+         a33: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) symmetric matrices from their upper triangles."""
     return np.stack([np.stack([a11, a12, a13], -1), np.stack([a12, a22, a23], -1),
                      np.stack([a13, a23, a33], -1)], -2)

@@ -1,13 +1,6 @@
-"""DriveBot's vertices and the two edge models that differ from ``helpers.graph``'s standard 2D set.
-
-Reused unchanged from ``helpers.graph`` (identical models):
-
-    EdgePositionPrior   GPS with lever arm l:  e = [x, y] + R(ψ) l − z,
-                        J = [[1, 0, −s l_x − c l_y], [0, 1, c l_x − s l_y]]   (the ψ column matters: |l| = 22.4 m)
-    EdgeHeadingPrior    compass (the FIXED edge):  e = wrap(ψ + Δψ_C − z),  J = [0, 0, 1]
-    EdgeRangeBearing    landmark:  e = [‖m − p‖ − z_r, wrap(atan2(d_y, d_x) − ψ − z_β)]
-
-Defined here:
+"""DriveBot's vertices and the two edge models that differ from ``helpers.graph``'s standard 2D set (the GPS,
+the fixed compass and the landmark edges are the graph package's ``EdgePositionPrior``, ``EdgeHeadingPrior`` and
+``EdgeRangeBearing``).
 
 ``VehicleVertex``  — ``VertexSE2`` (x ⊞ δ = x + δ, then ψ wrapped) that also stores its ``time``.
 ``LandmarkVertex`` — ``VertexPointXY`` (additive) that also stores its 1-based ``landmark_id``.
@@ -18,9 +11,8 @@ Defined here:
     Δ = [x_{k+1} − x_k, y_{k+1} − y_k, wrap(ψ_{k+1} − ψ_k)],  c = cos ψ_k, s = sin ψ_k,
     J_k     = (1/ΔT) [[−c, −s, −Δx s + Δy c], [s, −c, −Δx c − Δy s], [0, 0, −1]],
     J_{k+1} = Mᵀ(ψ_k) / ΔT = (1/ΔT) [[c, s, 0], [−s, c, 0], [0, 0, 1]].
-    ``evaluate`` is these equations in numpy, for all edges of the class at once (it is also the example edge of
-    ``helpers.graph``'s protocol).
-    ``initialize()`` sets x_{k+1} = x_k ⊞ ΔT M(ψ_k) z (forward prediction, ψ wrapped) — see ``predict``.
+    ``evaluate`` is these equations in numpy, for all edges of the class at once; ``initialize()`` sets
+    x_{k+1} = x_k ⊞ ΔT M(ψ_k) z (forward prediction, ψ wrapped) — see ``predict``.
 
 ``BuggyCompassEdge`` — the coursework's provided compass edge: e = ψ + Δψ_C − z with **no wrap**,
 J = [0, 0, 1]. Once ψ + Δψ_C leaves [−π, π) while the simulator's z is wrapped, every residual is off by
@@ -30,22 +22,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..graph import (BaseEdge, EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing, VertexPointXY, VertexSE2,
-                     batch_matrix, wrap_angle)
+from ..graph import BaseEdge, EdgeHeadingPrior, VertexPointXY, VertexSE2, batch_matrix, wrap_angle
 
-__all__ = ["VehicleVertex", "LandmarkVertex", "VehicleKinematicsEdge", "BuggyCompassEdge", "FixedCompassEdge",
-           "GPSEdge", "LandmarkRangeBearingEdge", "predict"]
-
-#: The fixed compass edge, the GPS edge and the landmark edge are the graph package's own classes.
-FixedCompassEdge = EdgeHeadingPrior
-GPSEdge = EdgePositionPrior
-LandmarkRangeBearingEdge = EdgeRangeBearing
+__all__ = ["VehicleVertex", "LandmarkVertex", "VehicleKinematicsEdge", "BuggyCompassEdge", "predict"]
 
 
 class VehicleVertex(VertexSE2):
     """Vehicle pose [x, y, ψ] at ``time`` (dimension 3; ⊞ wraps ψ)."""
 
-    def __init__(self, time, id=None, estimate=None, fixed=False):
+    def __init__(self, time: float, id: int | None = None, estimate: np.ndarray | None = None, fixed: bool = False):
         super().__init__(id, estimate, fixed)
         self.time = float(time)
 
@@ -53,22 +38,15 @@ class VehicleVertex(VertexSE2):
 class LandmarkVertex(VertexPointXY):
     """Landmark position [x, y] with its 1-based ``landmark_id`` (dimension 2, additive ⊞)."""
 
-    def __init__(self, landmark_id, id=None, estimate=None, fixed=False):
+    def __init__(self, landmark_id: int, id: int | None = None, estimate: np.ndarray | None = None,
+                 fixed: bool = False):
         super().__init__(id, estimate, fixed)
         self.landmark_id = int(landmark_id)
 
 
-def predict(x, u, dt):
+def predict(x: np.ndarray, u: np.ndarray, dt: float | np.ndarray) -> np.ndarray:
     """Forward process model x' = x + ΔT M(ψ) u, ψ' wrapped; x, u (E, 3) or (3,), dt (E,) or scalar."""
-    x = np.asarray(x, dtype=float)
-    u = np.asarray(u, dtype=float)
-    dt = np.asarray(dt, dtype=float)
-    if x.shape[-1:] != (3,) or u.shape[-1:] != (3,) or x.ndim > 2 or u.ndim > 2:
-        raise ValueError(f"x and u must have shape (3,) or (E, 3), got {x.shape} and {u.shape}")
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(u))):
-        raise ValueError("x and u must be finite (no NaN or inf)")
-    if dt.ndim > 1 or not (np.all(np.isfinite(dt)) and np.all(dt > 0)):
-        raise ValueError(f"dt must be positive and finite (scalar or (E,)), got {dt!r}")
+    x, u, dt = np.asarray(x, dtype=float), np.asarray(u, dtype=float), np.asarray(dt, dtype=float)
     c, s = np.cos(x[..., 2]), np.sin(x[..., 2])
     out = np.empty(np.broadcast_shapes(x.shape, u.shape))
     out[..., 0] = x[..., 0] + dt * (c * u[..., 0] - s * u[..., 1])
@@ -85,7 +63,7 @@ class VehicleKinematicsEdge(BaseEdge):
     parameters = {"dt": 0.1}
 
     @staticmethod
-    def evaluate(states, z, params, jacobians=True):
+    def evaluate(states: list[np.ndarray], z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
         # Q1b: the process-model edge, e = Mᵀ(ψ_k) Δ / ΔT − u, and its analytic Jacobians J_k, J_{k+1}
         # (module docstring), for every edge of the class at once.
         xk, xn = states
@@ -107,19 +85,15 @@ class VehicleKinematicsEdge(BaseEdge):
     def initialize(self) -> None:
         """Set the second vertex to the forward prediction x_k + ΔT M(ψ_k) z from the first."""
         a, b = self.vertex(0), self.vertex(1)
-        if a is None or b is None:
-            raise ValueError("VehicleKinematicsEdge.initialize: both vertices must be set")
         b.set_estimate(predict(a.estimate, self.measurement, float(self.dt)))
 
 
 class BuggyCompassEdge(EdgeHeadingPrior):
-    """The coursework's provided (buggy) compass edge: e = ψ + offset − z, NOT wrapped; J = [0, 0, 1].
-
-    It is the fixed compass edge (``helpers.graph.EdgeHeadingPrior``, e = wrap(ψ + offset − z)) with the wrap
-    left out, so once ψ + offset leaves [−π, π) every residual is off by 2π."""
+    """The coursework's provided (buggy) compass edge: e = ψ + offset − z, NOT wrapped; J = [0, 0, 1]
+    (module docstring)."""
 
     @staticmethod
-    def evaluate(states, z, params, jacobians=True):
+    def evaluate(states: list[np.ndarray], z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
         # Q1c: the bug. e is not wrapped; the fix (EdgeHeadingPrior.evaluate) returns wrap_angle(e).
         _, jac = EdgeHeadingPrior.evaluate(states, z, params, jacobians)
         e = (states[0][:, 2] + params["offset"] - z[:, 0])[:, None]

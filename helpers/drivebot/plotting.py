@@ -6,22 +6,18 @@ line at x = their index, kinematics factors (squares) between consecutive vertic
 that observe them with a range-bearing factor on each link. Every element is read from ``system.graph``,
 so the picture is the real graph, not a sketch.
 
-``plot_wrapped_angle(ax, t, angle)`` draws a wrapped angle (heading in degrees or radians) as a line that is
-broken wherever it wraps round ±180° (|Δ| > half a turn between samples), so a wrap is a gap, not a vertical
-stroke across the whole axis; ``break_at_wraps`` returns the arrays with those gaps (NaN) inserted.
+``plot_wrapped_angle(ax, t, angle)`` draws a wrapped angle as a line broken wherever it wraps round (a gap, not
+a vertical stroke across the whole axis).
 """
 from __future__ import annotations
-
-import math
-import numbers
 
 import numpy as np
 
 from ..graph import EdgeHeadingPrior, EdgePositionPrior, EdgeRangeBearing
-from ..validation import float_array
+from ..validation import float_array, positive_number
 from .edges import BuggyCompassEdge, LandmarkVertex, VehicleKinematicsEdge, VehicleVertex
 
-__all__ = ["draw_factor_graph", "plot_state_errors", "plot_covariances", "break_at_wraps", "plot_wrapped_angle"]
+__all__ = ["draw_factor_graph", "plot_state_errors", "plot_covariances", "plot_wrapped_angle"]
 
 _STYLE = {
     VehicleKinematicsEdge: ("kinematics edge (odometry)", "#1f77b4", 0.0),
@@ -32,13 +28,8 @@ _STYLE = {
 }
 
 
-def draw_factor_graph(system, ax, title: str | None = None) -> None:
+def draw_factor_graph(system: object, ax: object, title: str | None = None) -> None:
     """Draw ``system.graph`` (a DriveBotSLAMSystem) on ``ax``; see the module docstring for the layout."""
-    from .slam_system import DriveBotSLAMSystem
-
-    if not isinstance(system, DriveBotSLAMSystem):
-        raise ValueError(f"system must be a DriveBotSLAMSystem, got {type(system).__name__}")
-    _check_axes(ax, None)
     verts = system.graph.vertices()
     pos = {}
     vehicles = [v for v in verts if isinstance(v, VehicleVertex)]
@@ -80,29 +71,10 @@ def draw_factor_graph(system, ax, title: str | None = None) -> None:
         ax.set_title(title)
 
 
-def _check_axes(axes, n):
-    if n is None:
-        if not hasattr(axes, "plot"):
-            raise ValueError(f"ax must be a matplotlib Axes, got {type(axes).__name__}")
-        return
-    axes = list(np.ravel(axes))
-    if len(axes) != n or not all(hasattr(a, "plot") for a in axes):
-        raise ValueError(f"axes must be {n} matplotlib Axes, got {len(axes)} object(s)")
-
-
-def _check_results(results):
-    from .runner import Results
-
-    if not isinstance(results, Results):
-        raise ValueError(f"results must be a Results (from run_question), got {type(results).__name__}")
-
-
-def plot_state_errors(results, axes, n_sigma: float = 2.0, label: str | None = None) -> None:
-    """Estimate − truth for x, y, ψ (ψ wrapped) with ±n_σ bounds from the covariance history, on 3 axes."""
-    _check_results(results)
-    _check_axes(axes, 3)
-    if isinstance(n_sigma, bool) or not isinstance(n_sigma, numbers.Real) or not 0 < n_sigma < math.inf:
-        raise ValueError(f"n_sigma must be a positive number, got {n_sigma!r}")
+def plot_state_errors(results: object, axes: list, n_sigma: float = 2.0, label: str | None = None) -> None:
+    """Estimate − truth for x, y, ψ (ψ wrapped) with ±n_σ bounds from the covariance history, on 3 axes
+    (``results``: a Results from run_question)."""
+    n_sigma = positive_number(n_sigma, "n_sigma")
     t = results.vehicle_state_time
     err = results.state_error()
     sig = n_sigma * np.sqrt(results.vehicle_covariance_history)
@@ -116,10 +88,8 @@ def plot_state_errors(results, axes, n_sigma: float = 2.0, label: str | None = N
     axes[0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2)  # above the data, covering none of it
 
 
-def plot_covariances(results, axes, label: str | None = None) -> None:
-    """The marginal variances P_xx, P_yy, P_ψψ against time, on 3 axes."""
-    _check_results(results)
-    _check_axes(axes, 3)
+def plot_covariances(results: object, axes: list, label: str | None = None) -> None:
+    """The marginal variances P_xx, P_yy, P_ψψ of a Results against time, on 3 axes."""
     t = results.vehicle_state_time
     names = ["P_xx (m²)", "P_yy (m²)", "P_ψψ (rad²)"]
     for i, ax in enumerate(axes):
@@ -128,24 +98,11 @@ def plot_covariances(results, axes, label: str | None = None) -> None:
     axes[-1].set_xlabel("time (s)")
 
 
-def break_at_wraps(t, angle, period: float = 360.0):
-    """(t, angle) with a NaN inserted between consecutive samples whose angles differ by more than period/2.
-
-    ``period`` is one full turn in the angle's unit (360 for degrees, 2π for radians). A wrapped angle jumps by
-    about one period where it crosses ±period/2; the NaN makes matplotlib break the line there.
-    """
-    t = float_array(t, "t")
-    angle = float_array(angle, "angle")
+def plot_wrapped_angle(ax: object, t: np.ndarray, angle: np.ndarray, period: float = 360.0, **kwargs: object) -> list:
+    """Plot a wrapped angle against t on ``ax``, the line broken (a NaN inserted) between consecutive samples whose
+    angles differ by more than half a turn; ``period`` is one turn in the angle's unit (360 or 2π)."""
+    t, angle, period = float_array(t, "t"), float_array(angle, "angle"), positive_number(period, "period")
     if t.ndim != 1 or t.shape != angle.shape:
         raise ValueError(f"t and angle must be 1-D arrays of the same length, got shapes {t.shape} and {angle.shape}")
-    if isinstance(period, bool) or not isinstance(period, numbers.Real) or not np.isfinite(period) or period <= 0:
-        raise ValueError(f"period must be a positive number (360 for degrees, 2π for radians), got {period!r}")
     jumps = np.flatnonzero(np.abs(np.diff(angle)) > 0.5 * period) + 1
-    return np.insert(t, jumps, np.nan), np.insert(angle, jumps, np.nan)
-
-
-def plot_wrapped_angle(ax, t, angle, period: float = 360.0, **kwargs):
-    """Plot a wrapped angle against t on ``ax`` without vertical strokes at the wraps (see break_at_wraps)."""
-    _check_axes(ax, None)
-    tb, ab = break_at_wraps(t, angle, period)
-    return ax.plot(tb, ab, **kwargs)
+    return ax.plot(np.insert(t, jumps, np.nan), np.insert(angle, jumps, np.nan), **kwargs)

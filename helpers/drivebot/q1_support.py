@@ -1,24 +1,16 @@
 """Support for the Q1 notebooks (10–14): χ² acceptance intervals and the online (filtered) vehicle estimate.
 
-``chi2_interval(dof, probability)`` is the central interval that holds χ² of a consistent graph with the given
-probability, from the χ² distribution's quantiles (``helpers.gaussian.chi2inv``), not from the Gaussian
-approximation dof ± k√(2 dof), which goes negative for small dof and is lopsided for moderate dof.
-
-``jacobian_error(edge)`` compares an edge's analytic Jacobians with central differences through each vertex's ⊞.
-
-``OnlineEstimate`` is a ``step_hook`` for ``run_question``: after every tick it records the estimate of the
-newest vehicle vertex as the graph held it *then* (after that tick's optimisation, if one was due). That is
-the estimate an online system would have reported at that moment — it uses only the measurements received
-so far — while ``Results.vehicle_state_history`` holds the smoothed estimates of the final graph, which use
-every measurement of the run, including those received long after each pose.
+``chi2_interval(dof, probability)``: the central interval holding χ² of a consistent graph with that probability.
+``OnlineEstimate`` is a ``step_hook`` for ``run_question`` recording, after every tick, the estimate of the newest
+vehicle vertex as the graph held it *then*: what an online system would have reported, from the measurements so
+far, while ``Results.vehicle_state_history`` holds the smoothed estimates of the final graph.
 """
 from __future__ import annotations
-
-import numbers
 
 import numpy as np
 
 from ..gaussian import chi2_interval  # re-exported: the notebooks import it from here
+from ..validation import positive_number
 
 __all__ = ["chi2_interval", "OnlineEstimate", "fraction_inside", "jacobian_error"]
 
@@ -29,59 +21,50 @@ class OnlineEstimate:
     After the run: ``time`` (N,) and ``state`` (3×N) — the online (filtered) estimate of the pose at each tick.
     """
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._t: list[float] = []
         self._x: list[np.ndarray] = []
 
-    def __call__(self, system, k) -> None:
-        vertex = getattr(system, "current_vehicle_vertex", None)
-        if vertex is None:
-            raise ValueError("system must be a DriveBotSLAMSystem with a current vehicle vertex")
+    def __call__(self, system: object, k: int) -> None:
+        vertex = system.current_vehicle_vertex
         self._t.append(float(vertex.time))
         self._x.append(np.array(vertex.estimate, dtype=float))
 
     @property
     def time(self) -> np.ndarray:
+        """(N,) times of the recorded ticks."""
         return np.array(self._t)
 
     @property
     def state(self) -> np.ndarray:
+        """(3, N) online estimates."""
         return np.array(self._x).reshape(-1, 3).T
 
 
-def fraction_inside(err, variance, n_sigma: float = 2.0) -> np.ndarray:
+def fraction_inside(err: np.ndarray, variance: np.ndarray, n_sigma: float = 2.0) -> np.ndarray:
     """Per row, the fraction of columns with |err| ≤ n_σ·σ, over the columns whose variance is positive.
 
     ``err`` and ``variance`` are (d, N) arrays (e.g. ``Results.state_error()`` and
     ``Results.vehicle_covariance_history``); columns with zero variance (the fixed first pose) or NaN are left out;
     a negative variance raises ValueError.
     """
-    err = np.asarray(err, dtype=float)
-    variance = np.asarray(variance, dtype=float)
-    if err.ndim != 2 or err.shape != variance.shape:
-        raise ValueError(f"err and variance must be (d, N) arrays of one shape, got {err.shape} and {variance.shape}")
-    if isinstance(n_sigma, bool) or not isinstance(n_sigma, numbers.Real) or not n_sigma > 0:
-        raise ValueError(f"n_sigma must be a positive number, got {n_sigma!r}")
+    err, variance = np.asarray(err, dtype=float), np.asarray(variance, dtype=float)
+    n_sigma = positive_number(n_sigma, "n_sigma")
     if np.any(variance < 0):
         raise ValueError("variance must not be negative (NaN marks a missing value)")
-    out = np.empty(err.shape[0])
-    for i in range(err.shape[0]):
-        use = np.isfinite(err[i]) & np.isfinite(variance[i]) & (variance[i] > 0)
-        if not np.any(use):
-            raise ValueError(f"row {i} of variance has no positive finite entry")
-        out[i] = np.mean(np.abs(err[i, use]) <= n_sigma * np.sqrt(variance[i, use]))
-    return out
+    use = np.isfinite(err) & np.isfinite(variance) & (variance > 0)
+    if not np.all(np.any(use, axis=1)):
+        raise ValueError("every row of variance needs a positive finite entry")
+    inside = use & (np.abs(err) <= n_sigma * np.sqrt(np.where(use, variance, 0.0)))
+    return np.sum(inside, axis=1) / np.sum(use, axis=1)
 
 
-def jacobian_error(edge, eps: float = 1e-6) -> float:
+def jacobian_error(edge: object, eps: float = 1e-6) -> float:
     """max |J_analytic − J_numeric| over the edge's vertices; J_numeric by central differences of e(x ⊞ ±ε·e_d).
 
     Every vertex's estimate is restored afterwards. ``edge`` is any ``helpers.graph`` edge whose vertices are set.
     """
-    if not (hasattr(edge, "jacobians") and hasattr(edge, "vertices") and hasattr(edge, "error")):
-        raise ValueError(f"edge must be a helpers.graph edge, got {type(edge).__name__}")
-    if isinstance(eps, bool) or not isinstance(eps, numbers.Real) or not 0 < eps < 1e-2:
-        raise ValueError(f"eps must be a small positive step (0 < eps < 1e-2), got {eps!r}")
+    eps = positive_number(eps, "eps")
     analytic = edge.jacobians()
     worst = 0.0
     for vertex, jac in zip(edge.vertices(), analytic):

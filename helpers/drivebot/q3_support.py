@@ -1,31 +1,17 @@
 """Evaluation harness of the Q3 notebooks (coursework Q3a(iv), Q3b(iii)): several variants × several seeds.
 
-One run's numbers are one draw of the noise; the notebooks compare variants (full SLAM, prediction edges
-removed, pruning heuristics) by the mean and spread over seeds of quantities that do not depend on the
-machine:
-
-- graph size: ``vehicle_vertices``, ``landmark_vertices``, ``kinematics_edges``, ``landmark_edges``,
-  ``edges`` and ``hessian_nnz`` (non-zeros of the final H = Σ JᵀΩJ, a machine-independent proxy for the
-  work per Levenberg–Marquardt iteration);
-- consistency: ``chi2``, ``dof``, ``chi2_per_dof`` (≈ 1 for a consistent graph) and ``chi2_in_band``
-  (|χ² − dof| ≤ 4·√(2·dof));
-- accuracy and certainty: ``pose_rms`` (m, over the vehicle vertices still in the graph), ``landmark_rms``
-  (m), ``pos_var_median`` (median P_xx + P_yy over the free vehicle vertices, m²) and ``psi_var_median``
-  (rad²);
-- wall-clock times (``opt_time_total``, ``opt_time_final``, ``run_time``, s) — these depend on the machine
-  and its load, so the notebooks print them in unchecked cells only.
-
-All variants of one seed share one simulator pass (``runner.run_variants``: same events, one simulation). A
-run that raises a GraphError (e.g. a gauge failure with other parameters) is recorded with its error message
-instead of crashing the evaluation.
+One run is one draw of the noise, so the notebooks compare variants by the mean and spread over seeds of
+machine-independent quantities (``run_metrics``): graph size (``hessian_nnz``: non-zeros of the final H, a proxy
+for the work per iteration), consistency (``chi2_in_band``: inside the 4σ interval), accuracy (RMS, m) and
+certainty (median variances); wall times too, which depend on the machine and its load.
 """
 from __future__ import annotations
 
 import math
-import numbers
 
 import numpy as np
 
+from ..validation import index_list
 from .analysis import position_error_rms
 from .runner import Results, run_variants
 
@@ -44,10 +30,8 @@ METRIC_LABELS = {
 }
 
 
-def run_metrics(results) -> dict:
+def run_metrics(results: Results) -> dict:
     """The machine-independent quantities (module docstring) and the wall times of one run."""
-    if not isinstance(results, Results):
-        raise ValueError(f"results must be a Results (from run_question / run_variants), got {type(results).__name__}")
     system = results.system
     st = results.graph_statistics()
     system.ensure_structure()
@@ -73,32 +57,17 @@ def run_metrics(results) -> dict:
     }
 
 
-def _check_seeds(seeds, name="seeds"):
-    seeds = list(seeds) if hasattr(seeds, "__iter__") and not isinstance(seeds, (str, bytes, dict)) else None
-    if not seeds or not all(isinstance(s, numbers.Integral) and not isinstance(s, bool) and s >= 0 for s in seeds) \
-            or len(set(seeds)) != len(seeds):
-        raise ValueError(f"{name} must be a non-empty sequence of distinct non-negative integers, got {seeds!r}")
-    return [int(s) for s in seeds]
+def evaluate_seeds(question: str, variants: dict, seeds: list[int], keep: tuple = (),
+                   **overrides: object) -> tuple[dict, dict]:
+    """Run every variant for every seed (one ``run_variants`` pass per seed); returns ``(evaluation, kept)``.
 
-
-def evaluate_seeds(question: str, variants: dict, seeds, keep=(), **overrides):
-    """Run every variant for every seed; returns ``(evaluation, kept)``.
-
-    ``variants`` maps a name to its SLAM options — a dict, or ``options(seed) -> dict`` when the options
-    hold an object that must be new for every run (a pruning hook); ``overrides`` (configuration fields or
-    SLAM options, e.g. ``maximum_step_number``) apply to all. Per seed, all variants share one simulator pass
-    (``runner.run_variants``). ``evaluation`` is {variant: {seed: metrics or {"failed": message}}};
-    ``kept`` is {(variant, seed): Results} for the seeds listed in ``keep`` (e.g. the seed a notebook plots).
+    ``variants``: name → SLAM options, a dict or ``options(seed) -> dict`` (for a hook that must be new for every
+    run); ``overrides`` apply to all. ``evaluation`` is {variant: {seed: metrics or {"failed": message}}},
+    ``kept`` {(variant, seed): Results} for the seeds listed in ``keep``.
     """
-    if not isinstance(variants, dict) or not variants or \
-            not all(callable(v) or isinstance(v, dict) for v in variants.values()):
-        raise ValueError("variants must be a non-empty dict {name: SLAM options dict or options(seed)}")
-    seeds = _check_seeds(seeds)
-    if isinstance(keep, (str, bytes)) or not hasattr(keep, "__len__"):
-        raise ValueError(f"keep must be a sequence of seeds (possibly empty), got {keep!r}")
-    keep = set(_check_seeds(keep, "keep")) if len(keep) else set()
-    if not keep <= set(seeds):
-        raise ValueError(f"keep must list seeds that are run, got {sorted(keep - set(seeds))} not in seeds {seeds}")
+    seeds = [int(s) for s in index_list(seeds, 2 ** 63 - 1, "seeds", distinct=True)]
+    if not set(keep) <= set(seeds):
+        raise ValueError(f"keep must list seeds that are run, got {sorted(set(keep) - set(seeds))} not in {seeds}")
     out, kept = {name: {} for name in variants}, {}
     for s in seeds:
         options = {name: (v(s) if callable(v) else dict(v)) for name, v in variants.items()}
@@ -112,32 +81,21 @@ def evaluate_seeds(question: str, variants: dict, seeds, keep=(), **overrides):
     return out, kept
 
 
-def _check_evaluation(evaluation, metrics=()):
-    """An evaluation from evaluate_seeds ({variant: {seed: metrics or {"failed": …}}}); ``metrics`` must be
-    recorded by every successful run."""
-    if not isinstance(evaluation, dict) or not evaluation or \
-            not all(isinstance(per, dict) and all(isinstance(m, dict) for m in per.values())
-                    for per in evaluation.values()):
-        raise ValueError("evaluation must be the non-empty {variant: {seed: metrics}} dict of evaluate_seeds, got "
-                         f"{type(evaluation).__name__}")
-    for metric in metrics:
-        if any(metric not in m for per in evaluation.values() for m in per.values() if "failed" not in m):
-            raise ValueError(f"unknown metric {metric!r}; the runs recorded {sorted(_recorded(evaluation))}")
+def _check_metric(evaluation, metric) -> None:
+    """ValueError unless every successful run of ``evaluation`` recorded ``metric``."""
+    if any(metric not in m for per in evaluation.values() for m in per.values() if "failed" not in m):
+        raise ValueError(f"unknown metric {metric!r}; the runs recorded "
+                         f"{sorted({k for per in evaluation.values() for m in per.values() for k in m})}")
 
 
-def _recorded(evaluation):
-    return {k for per in evaluation.values() for m in per.values() if "failed" not in m for k in m}
-
-
-def failures(evaluation) -> dict:
+def failures(evaluation: dict) -> dict:
     """{variant: [seeds whose run failed]}."""
-    _check_evaluation(evaluation)
     return {name: [s for s, m in per.items() if "failed" in m] for name, per in evaluation.items()}
 
 
-def seed_summary(evaluation, metric) -> dict:
+def seed_summary(evaluation: dict, metric: str) -> dict:
     """{variant: (mean, sample std (0 for one run), min, max, number of successful runs)} of one metric."""
-    _check_evaluation(evaluation, [metric])
+    _check_metric(evaluation, metric)
     out = {}
     for name, per in evaluation.items():
         vals = np.array([m[metric] for m in per.values() if "failed" not in m], dtype=float)
@@ -149,15 +107,11 @@ def seed_summary(evaluation, metric) -> dict:
     return out
 
 
-def format_seed_table(evaluation, columns) -> str:
+def format_seed_table(evaluation: dict, columns: list[tuple[str, str, str]]) -> str:
     """A text table, one row per variant, of ``mean ± std`` per column.
 
     ``columns``: list of (metric, header, format spec), e.g. ``("pose_rms", "pose RMS (m)", ".3f")``.
     """
-    if not isinstance(columns, (list, tuple)) or not columns or \
-            not all(isinstance(c, (list, tuple)) and len(c) == 3 for c in columns):
-        raise ValueError(f"columns must be a non-empty list of (metric, header, format spec), got {columns!r}")
-    _check_evaluation(evaluation, [c[0] for c in columns])
     name_w = max(len(n) for n in evaluation) + 1
     cells = {}
     for metric, _header, spec in columns:
@@ -171,23 +125,17 @@ def format_seed_table(evaluation, columns) -> str:
     return "\n".join(lines)
 
 
-def paired(evaluation, name, reference, metric) -> list:
+def paired(evaluation: dict, name: str, reference: str, metric: str) -> list:
     """[(value of ``name``, value of ``reference``)] of one metric, for each seed in which both runs succeeded."""
-    _check_evaluation(evaluation, [metric])
-    for n in (name, reference):
-        if n not in evaluation:
-            raise ValueError(f"unknown variant {n!r}; the evaluation has {list(evaluation)}")
+    _check_metric(evaluation, metric)
     runs, ref = evaluation[name], evaluation[reference]
     return [(runs[s][metric], ref[s][metric]) for s in runs
             if s in ref and "failed" not in runs[s] and "failed" not in ref[s]]
 
 
-def format_relative(evaluation, reference, name_width=24) -> str:
+def format_relative(evaluation: dict, reference: str, name_width: int = 24) -> str:
     """One line per variant comparing its seed means with ``reference``'s: edges removed, landmark edges and
     non-zeros of H as fractions of the reference's, and the median position variance as a factor."""
-    _check_evaluation(evaluation)
-    if reference not in evaluation:
-        raise ValueError(f"unknown reference variant {reference!r}; the evaluation has {list(evaluation)}")
     mean = {m: {n: v[0] for n, v in seed_summary(evaluation, m).items()}
             for m in ("edges", "landmark_edges", "hessian_nnz", "pos_var_median")}
     width = max(name_width, *(len(n) for n in evaluation))
@@ -200,15 +148,12 @@ def format_relative(evaluation, reference, name_width=24) -> str:
     return "\n".join(lines)
 
 
-def plot_seed_bars(axes, evaluation, metrics, colors=None) -> None:
+def plot_seed_bars(axes: object, evaluation: dict, metrics: list[str], colors: list | None = None) -> None:
     """One horizontal bar panel per metric: mean over seeds (bar), ± one std (error bar), each seed (dot).
 
     Variant names label the bars of the panels in the first column of the figure's grid.
     """
     axes = np.atleast_1d(axes).ravel()
-    _check_evaluation(evaluation, metrics)
-    if len(axes) != len(metrics):
-        raise ValueError(f"need one axis per metric: {len(metrics)} metrics, {len(axes)} axes")
     names = list(evaluation)
     y = np.arange(len(names))[::-1]
     for ax, metric in zip(axes, metrics):
@@ -226,16 +171,10 @@ def plot_seed_bars(axes, evaluation, metrics, colors=None) -> None:
         ax.grid(axis="y", visible=False)
 
 
-def spy_hessian(ax, H, starts, n_vehicle, title="") -> int:
+def spy_hessian(ax: object, H: np.ndarray, starts: np.ndarray, n_vehicle: int, title: str = "") -> int:
     """Sparsity pattern of a re-ordered H (from ``marginalisation.hessian_blocks``), one pixel per entry (black:
     non-zero), with a line between the vehicle and landmark blocks; returns the number of non-zeros."""
     H = np.asarray(H)
-    starts = np.asarray(starts)
-    if H.ndim != 2 or H.shape[0] != H.shape[1]:
-        raise ValueError(f"H must be square, got shape {H.shape}")
-    if isinstance(n_vehicle, bool) or not isinstance(n_vehicle, numbers.Integral) or \
-            not 0 <= n_vehicle <= len(starts):
-        raise ValueError(f"n_vehicle must be between 0 and {len(starts)}, got {n_vehicle}")
     ax.imshow(H != 0, cmap="Greys", vmin=0, vmax=1, interpolation="nearest")
     if 0 < n_vehicle < len(starts):
         edge = starts[n_vehicle] - 0.5

@@ -17,39 +17,25 @@ __all__ = ["Results"]
 
 @dataclass
 class Results:
-    """What a run produced (N = number of processed ticks = number of vehicle vertices).
-
-    optimization_times (N,)          wall time of each optimisation at its tick, NaN where none ran
-    optimization_iterations (N,)     LM iterations of that optimisation (0 where none ran)
-    chi2_time, chi2_history (K,)     tick time and χ² after each optimisation (including the final one)
-    vehicle_true_state_time (N,), vehicle_true_state_history (3×N)
-    vehicle_state_time (N,), vehicle_state_history (3×N)      smoothed estimates from the final graph
-    vehicle_covariance_history (3×N) covariance diagonals (0 for the fixed first vertex)
-    vehicle_in_graph (N,) bool       False for vertices deleted from the graph (Q3a/Q3b); their state and
-                                     covariance columns are NaN so that plots show gaps, not spikes
-    system                           the final DriveBotSLAMSystem (``system.graph`` is the optimiser)
-    run_time                         wall time of the whole run (s; machine-dependent)
-    """
+    """What a run produced (N = number of processed ticks = number of vehicle vertices)."""
 
     question: str
     config: SimulatorConfiguration
     scenario: Scenario
-    optimization_times: np.ndarray
-    chi2_time: np.ndarray
-    chi2_history: np.ndarray
-    vehicle_true_state_time: np.ndarray
-    vehicle_true_state_history: np.ndarray
-    vehicle_state_time: np.ndarray
-    vehicle_state_history: np.ndarray
-    vehicle_covariance_history: np.ndarray
-    vehicle_in_graph: np.ndarray
-    system: DriveBotSLAMSystem
-    optimization_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    run_time: float = field(default=float("nan"))
-    #: laser readings the simulator did not report because their noisy range was ≤ 0
-    dropped_laser_readings: int = 0
-    #: the ``setup`` the run was given (``run_question``; None: the coursework's run)
-    setup: object = None
+    optimization_times: np.ndarray           # (N,) wall time of the optimisation at each tick, NaN where none ran
+    chi2_time: np.ndarray                    # (K,) tick time of each optimisation (the final one included)
+    chi2_history: np.ndarray                 # (K,) χ² after each optimisation
+    vehicle_true_state_time: np.ndarray      # (N,)
+    vehicle_true_state_history: np.ndarray   # (3, N)
+    vehicle_state_time: np.ndarray           # (N,)
+    vehicle_state_history: np.ndarray        # (3, N) smoothed estimates from the final graph
+    vehicle_covariance_history: np.ndarray   # (3, N) covariance diagonals (0 for the fixed first vertex)
+    vehicle_in_graph: np.ndarray             # (N,) False for vertices deleted from the graph (Q3): NaN columns above
+    system: DriveBotSLAMSystem               # the final system (``system.graph`` is the optimiser)
+    optimization_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))  # (N,)
+    run_time: float = field(default=float("nan"))   # wall time of the whole run (s; machine-dependent)
+    dropped_laser_readings: int = 0          # readings the simulator did not report (noisy range ≤ 0)
+    setup: object = None                     # the ``setup`` of run_question (None: the coursework's run)
 
     @property
     def n_steps(self) -> int:
@@ -58,9 +44,7 @@ class Results:
 
     @property
     def final_chi2(self) -> float:
-        """χ² after the last optimisation (ValueError for partial results of a run that never optimised)."""
-        if self.chi2_history.size == 0:
-            raise ValueError("final_chi2: no optimisation has run (partial results of a run that failed early)")
+        """χ² after the last optimisation."""
         return float(self.chi2_history[-1])
 
     def state_error(self) -> np.ndarray:
@@ -73,14 +57,13 @@ class Results:
         """Counts by vertex and edge type and the χ² degrees of freedom (see DriveBotSLAMSystem)."""
         return self.system.graph_statistics()
 
-    def landmark_estimates(self):
+    def landmark_estimates(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(x 2×L, P 2×2×L, ids) from the final graph."""
         return self.system.landmark_estimates()
 
     def chi2_bounds(self, k: float = 4.0) -> tuple[float, float]:
-        """The "k-sigma" acceptance interval of χ²: the central interval of χ²_dof holding probability
-        2Φ(k) − 1 (0.99994 for k = 4), from the χ² quantiles; dof = measurement dimensions − free state
-        dimensions ((0, 0) when dof < 1: a graph without redundancy fits exactly)."""
+        """The "k-sigma" acceptance interval of χ²: the central interval of χ²_dof holding probability 2Φ(k) − 1
+        ((0, 0) when dof < 1: a graph without redundancy fits exactly)."""
         k = positive_number(k, "k")
         dof = self.graph_statistics()["dof"]
         if dof < 1:

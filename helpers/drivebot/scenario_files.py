@@ -1,9 +1,8 @@
 """Generating and writing the DriveBot scenario files in ``data/drivebot/`` (the reading side is ``scenarios``).
 
-The hand-made scenarios are the lists in ``scenarios.SCENARIO_DEFINITIONS``. The large map is drawn once
-from a fixed seed (:func:`generate_large_map`); placing its last waypoint needs noise-free runs of the
-simulator, which is why this module sits above both ``scenarios`` and ``simulator`` (``scenarios`` imports
-neither of them, so there is no import cycle).
+The hand-made scenarios are the lists in ``SCENARIO_DEFINITIONS``. The large map is drawn once from a fixed seed
+(:func:`generate_large_map`); placing its last waypoint needs noise-free runs of the simulator, which is why this
+module sits above both ``scenarios`` and ``simulator``.
 
 ``python -m helpers.drivebot.scenario_files`` rewrites every file (deterministically).
 """
@@ -16,11 +15,31 @@ import numpy as np
 
 from ..validation import boolean, integer
 from .config import SimulatorConfiguration
-from .scenarios import (LARGE_MAP_FIRST_WAYPOINTS, LARGE_MAP_RUN_LENGTH, LARGE_MAP_SEED, SCENARIO_DEFINITIONS,
-                        SCENARIO_NAMES, Scenario, data_dir)
+from .scenarios import SCENARIO_NAMES, Scenario, data_dir
 from .simulator import DriveBotSimulator
 
-__all__ = ["generate_large_map", "write_scenario_files", "ticks_to_finish"]
+__all__ = ["generate_large_map", "write_scenario_files", "ticks_to_finish", "SCENARIO_DEFINITIONS", "LARGE_MAP_SEED"]
+
+BASE_LANDMARKS = [(2, 2), (5, 3), (42, 3), (60, 2), (73, 10), (66, 68), (3, 27)]
+Q3A_EXTRA_LANDMARKS = [(67, 48), (71, 35), (49, 71), (18, 58), (21, 17), (10, 45)]
+ONE_LOOP = [(70, 0), (70, 70), (0, 70), (0, 0)]
+LARGE_MAP_FIRST_WAYPOINTS = [(49.16, 54.47), (28.82, 16.58), (65.67, 50.65)]
+#: Seed of the one-off draw of the large map (landmarks and waypoints 4–20); see generate_large_map.
+LARGE_MAP_SEED = 20240229
+#: The coursework's large-map run length; the last waypoint is placed to reproduce it.
+LARGE_MAP_RUN_LENGTH = 5667
+
+#: name → (landmarks [(x, y), …], waypoints [(x, y), …]) of every hand-made scenario (large_map is drawn).
+SCENARIO_DEFINITIONS = {
+    "q1_b": (BASE_LANDMARKS, ONE_LOOP[:2]),
+    "q1_c": (BASE_LANDMARKS, ONE_LOOP[:2]),
+    "q1_e": (BASE_LANDMARKS, ONE_LOOP[:1]),
+    "q1_d": (BASE_LANDMARKS, ONE_LOOP * 4),
+    "q2_b": (BASE_LANDMARKS, ONE_LOOP),
+    "q2_c": (BASE_LANDMARKS, ONE_LOOP * 4),
+    "q2_d": (BASE_LANDMARKS, ONE_LOOP),
+    "q3_a": (BASE_LANDMARKS + Q3A_EXTRA_LANDMARKS, ONE_LOOP * 4),
+}
 
 _RUN_CAP = 20_000  # a route whose waypoint the controller cannot reach (it orbits it) counts as this long
 

@@ -7,13 +7,8 @@ Every scenario starts at (0, 0) with heading 0. Layout::
 
 Scenarios: ``q1_b``/``q1_c`` (70 m square to (70, 70)), ``q1_e`` (to (70, 0)), ``q2_b``/``q2_d`` (one loop),
 ``q1_d``/``q2_c`` (the loop four times), all with the base 7-landmark map; ``q3_a`` (four loops, 13
-landmarks); ``large_map`` (200 landmarks uniform in [0, 100]², 20 waypoints, the first three fixed by the
-coursework, the rest drawn once with a fixed seed by ``helpers.drivebot.scenario_files.generate_large_map``,
-which places the last waypoint so that the run has the coursework's 5667 ticks).
-
-This module only *reads* scenarios (it sits below the simulator). Generating and writing the files needs the
-simulator, so it lives one layer up: ``python -m helpers.drivebot.scenario_files`` rewrites every file
-(deterministically).
+landmarks); ``large_map`` (200 landmarks uniform in [0, 100]², 20 waypoints). This module only *reads* them;
+``python -m helpers.drivebot.scenario_files`` writes every file (deterministically).
 """
 from __future__ import annotations
 
@@ -24,30 +19,9 @@ import numpy as np
 
 from ..paths import data_path
 
-__all__ = ["Scenario", "SCENARIO_NAMES", "SCENARIO_DEFINITIONS", "load_scenario", "data_dir", "LARGE_MAP_SEED",
-           "LARGE_MAP_RUN_LENGTH", "LARGE_MAP_FIRST_WAYPOINTS"]
+__all__ = ["Scenario", "SCENARIO_NAMES", "load_scenario", "data_dir"]
 
-BASE_LANDMARKS = [(2, 2), (5, 3), (42, 3), (60, 2), (73, 10), (66, 68), (3, 27)]
-Q3A_EXTRA_LANDMARKS = [(67, 48), (71, 35), (49, 71), (18, 58), (21, 17), (10, 45)]
-ONE_LOOP = [(70, 0), (70, 70), (0, 70), (0, 0)]
-LARGE_MAP_FIRST_WAYPOINTS = [(49.16, 54.47), (28.82, 16.58), (65.67, 50.65)]
-#: Seed of the one-off draw of the large map (landmarks and waypoints 4–20); see scenario_files.generate_large_map.
-LARGE_MAP_SEED = 20240229
-#: The coursework's large-map run length; the last waypoint is placed to reproduce it.
-LARGE_MAP_RUN_LENGTH = 5667
-
-#: name → (landmarks [(x, y), …], waypoints [(x, y), …]) of every hand-made scenario (large_map is drawn).
-SCENARIO_DEFINITIONS = {
-    "q1_b": (BASE_LANDMARKS, ONE_LOOP[:2]),
-    "q1_c": (BASE_LANDMARKS, ONE_LOOP[:2]),
-    "q1_e": (BASE_LANDMARKS, ONE_LOOP[:1]),
-    "q1_d": (BASE_LANDMARKS, ONE_LOOP * 4),
-    "q2_b": (BASE_LANDMARKS, ONE_LOOP),
-    "q2_c": (BASE_LANDMARKS, ONE_LOOP * 4),
-    "q2_d": (BASE_LANDMARKS, ONE_LOOP),
-    "q3_a": (BASE_LANDMARKS + Q3A_EXTRA_LANDMARKS, ONE_LOOP * 4),
-}
-SCENARIO_NAMES = tuple(sorted(SCENARIO_DEFINITIONS)) + ("large_map",)
+SCENARIO_NAMES = ("q1_b", "q1_c", "q1_d", "q1_e", "q2_b", "q2_c", "q2_d", "q3_a", "large_map")
 
 
 @dataclass(frozen=True)
@@ -98,17 +72,12 @@ def _read_table(path: pathlib.Path, header: str, name: str) -> np.ndarray:
     columns = header.count(",") + 1
     try:
         lines = path.read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read scenario {name!r}: {path}: {exc}") from None
-    if not lines or lines[0].strip() != header:
-        raise ValueError(f"scenario {name!r}: {path} must start with the header line {header!r}")
-    body = [line for line in lines[1:] if line.strip()]
-    if not body:
-        return np.zeros((0, columns))
-    try:
-        table = np.loadtxt(body, delimiter=",", ndmin=2)
-    except ValueError as exc:
-        raise ValueError(f"scenario {name!r}: {path} is malformed: {exc}") from None
+        if not lines or lines[0].strip() != header:
+            raise ValueError(f"it must start with the header line {header!r}")
+        body = [line for line in lines[1:] if line.strip()]
+        table = np.loadtxt(body, delimiter=",", ndmin=2) if body else np.zeros((0, columns))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise ValueError(f"cannot read scenario {name!r}: {path} is malformed: {exc}") from None
     if table.shape[1] != columns:
         raise ValueError(f"scenario {name!r}: {path} must have the {columns} columns {header}, got {table.shape[1]}")
     return table

@@ -1,24 +1,8 @@
-"""The standard 2D edge set, in the DriveBot conventions (e = h(x) − z, Jacobians ∂e/∂x w.r.t. the additive ⊞).
-
-Notation: pose x = [x, y, ψ], t = [x, y], R(ψ) = [[c, −s], [s, c]], S = [[0, −1], [1, 0]] (so dR/dψ = S R).
-
-EdgeSE2            pose–pose between (odometry / loop closure): GTSAM's BetweenFactor error, e = Log(z⁻¹ x_i⁻¹ x_j)
-                   (equations and both Jacobians in the class docstring).
-EdgeSE2Prior       e = [t − t_z, wrap(ψ − ψ_z)], J = I₃.
-EdgePositionPrior  GPS with a body-frame lever arm l: h = t + R(ψ) l, e = h − z,
-                   J = [[1, 0, −s lx − c ly], [0, 1, c lx − s ly]].
-EdgeHeadingPrior   compass with an offset Δψ: e = wrap(ψ + Δψ − z), J = [0, 0, 1].
-EdgeRangeBearing   pose → point, z = (range, bearing); d = m − t, r = ‖d‖,
-                   e = [r − z_r, wrap(atan2(dy, dx) − ψ − z_β)],
-                   J_x = [[−dx/r, −dy/r, 0], [dy/r², −dx/r², −1]],  J_m = [[dx/r, dy/r], [−dy/r², dx/r²]].
-EdgePointPrior     e = m − z, J = I₂.
-EdgeSE2PointXY     pose → point in the pose's frame (g2o EDGE_SE2_XY): q = R(ψ)ᵀ(m − t), e = q − z,
-                   J_x = [−R(ψ)ᵀ | [q_y, −q_x]ᵀ],  J_m = R(ψ)ᵀ.
-
-Measurement checks (the ``check_measurements`` hook of ``BaseEdge``, after the shape and finiteness checks):
-only ``EdgeRangeBearing`` restricts its measurement (range ≥ 0). Every other measurement here is a position,
-an offset or an angle, for which any finite value is physical (angles are wrapped in the error).
+"""The standard 2D edge set, in the DriveBot conventions: e = h(x) − z, Jacobians ∂e/∂x with respect to the
+additive ⊞. Pose x = [x, y, ψ], t = [x, y], R(ψ) = [[c, −s], [s, c]]. Each class docstring states its model.
 """
+
+from __future__ import annotations
 
 import numpy as np
 
@@ -30,19 +14,12 @@ __all__ = ["EdgeSE2", "EdgeSE2Prior", "EdgePositionPrior", "EdgeHeadingPrior", "
            "EdgePointPrior", "EdgeSE2PointXY", "se2_log_coefficients"]
 
 
-def _eye_stack(n, m):
-    out = np.zeros((n, m, m))
-    idx = np.arange(m)
-    out[:, idx, idx] = 1.0
-    return out
-
-
-def _apply(mats, vecs):
+def _apply(mats: np.ndarray, vecs: np.ndarray) -> np.ndarray:
     """Matrix times vector for stacks: (E, r, c) @ (E, c) → (E, r)."""
     return np.einsum("eij,ej->ei", mats, vecs)
 
 
-def se2_log_coefficients(theta):
+def se2_log_coefficients(theta: np.ndarray) -> tuple:
     """α(θ) = (θ/2)·cot(θ/2), β = θ/2 and their derivatives α'(θ), β' = 1/2 (series near θ = 0)."""
     theta = np.asarray(theta, dtype=float)
     half = 0.5 * theta
@@ -72,7 +49,7 @@ class EdgeSE2(BaseEdge):
     measurement_dimension = 3
 
     @staticmethod
-    def evaluate(states, z, params, jacobians=True):
+    def evaluate(states: list, z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
         xi, xj = states
         c_i, s_i, c_z, s_z = np.cos(xi[:, 2]), np.sin(xi[:, 2]), np.cos(z[:, 2]), np.sin(z[:, 2])
         ri_t, rz_t = batch_matrix([[c_i, s_i], [-s_i, c_i]]), batch_matrix([[c_z, s_z], [-s_z, c_z]])  # Rᵀ
@@ -100,11 +77,11 @@ class EdgeSE2Prior(BaseEdge):
     measurement_dimension = 3
 
     @staticmethod
-    def evaluate(states, z, params, jacobians=True):
+    def evaluate(states: list, z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
         (x,) = states
         e = x - z
         e[:, 2] = wrap_angle(e[:, 2])
-        return e, ([_eye_stack(len(z), 3)] if jacobians else None)
+        return e, ([np.broadcast_to(np.eye(3), (len(z), 3, 3))] if jacobians else None)
 
 
 class EdgePositionPrior(BaseEdge):
@@ -115,7 +92,7 @@ class EdgePositionPrior(BaseEdge):
     parameters = {"lever_arm": (0.0, 0.0)}
 
     @staticmethod
-    def evaluate(states, z, params, jacobians=True):
+    def evaluate(states: list, z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
         # Q1d: the antenna sits at the lever arm l in the body frame, so h = [x, y] + R(ψ) l and the ψ column of J
         # is ∂(R(ψ) l)/∂ψ = [−(R l)_y, (R l)_x]; with |l| = 22.4 m it couples heading and position.
         (x,) = states
@@ -144,7 +121,7 @@ class EdgeHeadingPrior(BaseEdge):
     parameters = {"offset": 0.0}
 
     @staticmethod
-    def evaluate(states, z, params, jacobians=True):
+    def evaluate(states: list, z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
         (x,) = states
         e = wrap_angle(x[:, 2] + params["offset"] - z[:, 0])[:, None]
         if not jacobians:
@@ -155,13 +132,15 @@ class EdgeHeadingPrior(BaseEdge):
 
 
 class EdgeRangeBearing(BaseEdge):
-    """Range-bearing from a pose to a point, z = (range, bearing) (see the module docstring)."""
+    """Range-bearing from a pose to a point, z = (range, bearing); d = m − t, r = ‖d‖:
+    e = [r − z_r, wrap(atan2(d_y, d_x) − ψ − z_β)],
+    J_x = [[−d_x/r, −d_y/r, 0], [d_y/r², −d_x/r², −1]],  J_m = [[d_x/r, d_y/r], [−d_y/r², d_x/r²]]."""
 
     vertex_types = (VertexSE2, VertexPointXY)
     measurement_dimension = 2
 
     @staticmethod
-    def evaluate(states, z, params, jacobians=True):
+    def evaluate(states: list, z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
         # Q2b: the landmark observation model, range and bearing from the vehicle to the landmark, the bearing
         # relative to the heading and wrapped; J_m = [[d_x/r, d_y/r], [−d_y/r², d_x/r²]], J_x = [−J_m | [0, −1]ᵀ].
         x, m = states
@@ -183,15 +162,9 @@ class EdgeRangeBearing(BaseEdge):
         return e, [jx, jm]
 
     @classmethod
-    def check_measurements(cls, z, name):
-        """A range is a distance: z[:, 0] ≥ 0, else ValueError naming ``name`` (``BaseEdge`` hook, called by
-        ``set_measurement`` and ``add_edges`` with z (E, 2) already shape-checked and finite).
-
-        0 is allowed: it is the edge of the physical domain, a sensor can report it (rounding), and the error
-        r − z_r is defined there; only an *estimate* with the point on the pose makes the Jacobian singular.
-        """
-        z = np.asarray(z, dtype=float)
-        bad = ~(z[:, 0] >= 0.0)  # also catches NaN
+    def check_measurements(cls, z: np.ndarray, name: str) -> None:
+        """A range is a distance: z[:, 0] ≥ 0 (0 is allowed: the error r − z_r is defined there), else ValueError."""
+        bad = ~(z[:, 0] >= 0.0)
         if bad.any():
             t = int(np.argmax(bad))
             row = f" (row {t})" if len(z) > 1 else ""
@@ -205,9 +178,9 @@ class EdgePointPrior(BaseEdge):
     measurement_dimension = 2
 
     @staticmethod
-    def evaluate(states, z, params, jacobians=True):
+    def evaluate(states: list, z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
         (m,) = states
-        return m - z, ([_eye_stack(len(z), 2)] if jacobians else None)
+        return m - z, ([np.broadcast_to(np.eye(2), (len(z), 2, 2))] if jacobians else None)
 
 
 class EdgeSE2PointXY(BaseEdge):
@@ -220,7 +193,7 @@ class EdgeSE2PointXY(BaseEdge):
     measurement_dimension = 2
 
     @staticmethod
-    def evaluate(states, z, params, jacobians=True):
+    def evaluate(states: list, z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
         x, m = states
         c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
         dx, dy = m[:, 0] - x[:, 0], m[:, 1] - x[:, 1]

@@ -1,4 +1,5 @@
 """Named errors of the graph optimiser."""
+from __future__ import annotations
 
 __all__ = ["GraphError", "GaugeFreedomError", "NonFiniteError"]
 
@@ -8,26 +9,19 @@ class GraphError(ValueError):
 
 
 class GaugeFreedomError(GraphError):
-    """A connected component of free vertices has nothing fixed attached and no unary (prior-type) edge.
+    """A connected component of free vertices has nothing fixed attached and no unary (prior) edge, so its Hessian
+    block is singular. ``component`` holds the vertices of the first free component found, ``components`` all."""
 
-    Its Hessian block is singular (a global translation/rotation of the component leaves χ² unchanged).
-    ``component`` holds the vertices of the first free component found, ``components`` all of them.
-    """
-
-    def __init__(self, message, components=()):
+    def __init__(self, message: str, components: list = ()) -> None:
         super().__init__(message)
         self.components = [list(c) for c in components]
         self.component = self.components[0] if self.components else []
 
 
 class NonFiniteError(GraphError):
-    """An edge's error, χ² contribution or Jacobian is NaN or ±inf (a degenerate configuration, an overflowing
-    estimate, or a model that returns NaN), so χ² or H cannot be trusted.
+    """An edge's error, χ² term or Jacobian is NaN or ±inf, so χ² or H cannot be trusted. ``edges`` holds the
+    offending edges; when the optimiser raises it, the vertices hold the last accepted state."""
 
-    ``edges`` holds the offending edge objects (all of them; the message names the first few by class and vertex
-    ids). When the optimiser raises it, the vertices hold the last accepted state.
-    """
-
-    def __init__(self, message, edges=()):
+    def __init__(self, message: str, edges: list = ()) -> None:
         super().__init__(message)
         self.edges = list(edges)

@@ -1,20 +1,17 @@
 """What ``initialize_optimization`` builds once per change of the graph's elements: the free state vector X, where
 every edge reads its vertices and writes its blocks of H and b, and the gauge check.
 
-Free state. The free (alive, not fixed) vertices are stacked in the order they were added: vertex handle h gets the
-rows ``hessian_index[h]`` … ``+ dimension`` of X (−1 when the vertex is fixed or removed).
+Free state: the free (alive, not fixed) vertices stacked in the order they were added; vertex handle h gets the
+rows ``hessian_index[h]`` … ``+ dimension`` of X (−1 when fixed or removed).
 
-H's pattern. Stack an edge's Jacobians side by side, J = [J_0 J_1 …] (D = Σ d_k columns) and whiten them, A = W J;
-the edge adds AᵀA (D × D) to H at the rows and columns of its vertices, and Aᵀr to b at their rows (r = W e). H is
-symmetric, so only its upper triangle (row ≤ col) is stored, in compressed-column (CSC) form, and only for free
-vertices. Every stored entry of every edge gets its position in H's CSC data array once, here (``np.unique`` over
-the (col, row) keys); each linearisation then adds the values in place (``add_normal_equations``: one compiled loop
-over the edges, the equations as comments — a numpy version of the same sums took twice as long on DriveBot's
-graphs, where the optimiser runs thousands of times).
+H's pattern: an edge with the whitened Jacobians A = W [J_0 J_1 …] adds AᵀA to H at the rows and columns of its
+free vertices and Aᵀr to b at their rows (r = W e). Only H's upper triangle is stored, in compressed-column (CSC)
+form; every stored entry of every edge gets its position in H's data array once, here, and each linearisation
+adds the values in place (``add_normal_equations``, compiled: the optimiser runs thousands of times in DriveBot).
 
-Gauge check. Free vertices joined by an edge are connected; a component is anchored if one of its vertices is in an
-edge with a fixed vertex or in a unary (prior) edge. An unanchored component can move as a whole without changing
-χ², so H is singular: ``GaugeFreedomError`` names its vertices.
+Gauge check: free vertices joined by an edge are connected; a component is anchored if one of its vertices is in
+an edge with a fixed vertex or in a unary (prior) edge. An unanchored component can move as a whole without
+changing χ², so H is singular: ``GaugeFreedomError`` names its vertices.
 """
 from __future__ import annotations
 
@@ -26,6 +23,7 @@ from numba import njit
 from scipy.sparse.csgraph import connected_components
 
 from .errors import GaugeFreedomError
+from .storage import VertexStore
 
 __all__ = ["VertexGroup", "EdgeClassLayout", "Layout", "free_state_layout", "build_layout", "check_gauge",
            "add_normal_equations"]
@@ -69,7 +67,7 @@ class Layout:
         return len(self.indices)
 
 
-def free_state_layout(vertex_store):
+def free_state_layout(vertex_store: VertexStore) -> tuple:
     """(hessian_index per handle, n, free handles, [VertexGroup]) of the vertices stored now."""
     free = vertex_store.alive.values & ~vertex_store.fixed.values
     dims = vertex_store.dimension.values
@@ -87,7 +85,7 @@ def free_state_layout(vertex_store):
     return hessian_index, int(dims[free].sum()), free_handles, groups
 
 
-def build_layout(vertex_store, edge_stores) -> Layout:
+def build_layout(vertex_store: VertexStore, edge_stores: dict) -> Layout:
     """The ``Layout`` of the graph's elements; raises GaugeFreedomError when a free component floats."""
     hessian_index, n, free_handles, groups = free_state_layout(vertex_store)
     offset = vertex_store.offset.values
@@ -123,7 +121,7 @@ def build_layout(vertex_store, edge_stores) -> Layout:
     return Layout(n, hessian_index, groups, edges, indptr, row.astype(np.int64), position[at:at + n])
 
 
-def _gauge_links(starts, handles):
+def _gauge_links(starts: list, handles: np.ndarray) -> tuple:
     """(pairs of free handles joined by an edge, as two lists of arrays; handles of anchored free vertices)."""
     free = [s >= 0 for s in starts]
     any_fixed = ~np.logical_and.reduce(free)
@@ -137,7 +135,8 @@ def _gauge_links(starts, handles):
     return link_a, link_b, anchored
 
 
-def check_gauge(free_handles, handle_count, link_a, link_b, anchored_handles, vertex_objects):
+def check_gauge(free_handles: np.ndarray, handle_count: int, link_a: list, link_b: list, anchored_handles: list,
+                vertex_objects: list) -> None:
     """Raise GaugeFreedomError unless every connected component of free vertices has an anchored vertex.
 
     ``link_a``/``link_b``: lists of arrays of free handles joined by an edge; ``anchored_handles``: list of arrays
@@ -168,7 +167,8 @@ def check_gauge(free_handles, handle_count, link_a, link_b, anchored_handles, ve
 
 
 @njit(cache=True)
-def add_normal_equations(w, e, jac, x_rows, h_index, hessian, gradient):
+def add_normal_equations(w: np.ndarray, e: np.ndarray, jac: np.ndarray, x_rows: np.ndarray, h_index: np.ndarray,
+                         hessian: np.ndarray, gradient: np.ndarray) -> float:
     """Add the edges of one class to H's CSC data ``hessian`` and to ``gradient`` (b); returns their χ².
 
     w (E, m, m) whitening (Ω = WᵀW), e (E, m) errors, jac (E, m, D) the Jacobians J = [J_0 J_1 …] side by side,

@@ -8,10 +8,8 @@ per edge class, for all its E edges at once:
     χ² += Σ rᵀr,   b[slot k] += A_kᵀ r,   H[slot k, slot l] += A_kᵀ A_l
 
 then the step solves H dX = b (Gauss–Newton) or (H + μI) dX = b (Levenberg–Marquardt) and moves X ← X ⊞ (−dX), each
-vertex class by its own ⊞. H is sparse and symmetric positive definite at a well-posed graph; it is factorised as
-Pᵀ H P = (I + L) D (I + L)ᵀ by qdldl (AMD ordering; the symbolic analysis is made once per layout and reused).
-
-The algorithms (``optimize``):
+vertex class by its own ⊞. H is sparse and symmetric positive definite at a well-posed graph; qdldl factorises it
+as Pᵀ H P = (I + L) D (I + L)ᵀ (AMD ordering; the symbolic analysis is made once per layout).
 
 Gauss–Newton: dX = H⁻¹ b, step X ⊞ (−α dX) with α halved while χ² rises (down to 1e−10); stops when ‖b‖∞ < 1e−12 or
 the decrease of χ² is below ``gn_tolerance`` (1e−5, absolute).
@@ -26,22 +24,22 @@ Levenberg–Marquardt as the coursework (Lourakis's SBA, Fig. 2), τ = 1e−3, �
     stop if √R0 < ε₃
 
 ``optimize`` is a transaction: whatever escapes it (an error in an edge model, a non-finite χ², an interrupt) first
-puts the last accepted X back into the vertices. Covariances (``compute_marginals``) are the blocks of H⁻¹ at the
-current estimates, from the sparse inverse on the pattern of L (``marginals``).
+puts the last accepted X back into the vertices. ``compute_marginals`` gives blocks of H⁻¹ (``marginals``).
 """
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 
 import numpy as np
 import qdldl
 import scipy.sparse as sp
 
-from ..validation import boolean, integer, positive_number
+from ..validation import boolean, integer, nonnegative_number, one_of, positive_number
 from .edge import check_model_output
 from .elements import GraphElements, nonfinite_error, total_chi2
 from .errors import GraphError, NonFiniteError
-from .layout import add_normal_equations, build_layout
+from .layout import Layout, add_normal_equations, build_layout
 from .marginals import marginal_blocks
 
 __all__ = ["SparseOptimizer"]
@@ -53,19 +51,15 @@ _MIN_STEP = 1e-10         # Gauss–Newton gives up when α has been halved belo
 
 
 class SparseOptimizer(GraphElements):
-    """The graph and its optimiser (module docstring).
-
-    Public: ``add_vertex``, ``add_edge``, ``add_edges``, ``remove_edge``, ``remove_vertex``, ``vertex(id, cls)``,
-    ``vertices()``, ``edges()`` (from ``GraphElements``); ``initialize_optimization()``, ``optimize(max_iterations,
-    algorithm)``, ``chi2()``, ``hessian()``, ``gradient()``, ``compute_marginals(vertices)``, ``statistics`` (one dict
-    per iteration), ``iterations``, ``chi2_history``, ``dimension`` (the size of X), ``factor`` (the qdldl solver of
-    the last factorisation), ``verbose``.
-    """
+    """The graph (``add_vertex``, ``add_edge``, ``add_edges``, ``remove_edge``, ``remove_vertex``, ``vertex(id,
+    cls)``, ``vertices()``, ``edges()``: ``GraphElements``) and its optimiser: ``initialize_optimization()``,
+    ``optimize``, ``chi2()``, ``hessian()``, ``gradient()``, ``compute_marginals``, ``statistics`` (one dict per
+    iteration), ``iterations``, ``chi2_history``, ``dimension`` (the size of X), ``factor`` (the qdldl solver)."""
 
     #: the names ``optimize`` accepts as ``algorithm``
     ALGORITHMS = ("lm", "gn")
 
-    def __init__(self, verbose: bool = False):
+    def __init__(self, verbose: bool = False) -> None:
         super().__init__()
         self.verbose = boolean(verbose, "SparseOptimizer(verbose)")
         self._layout = None
@@ -73,7 +67,7 @@ class SparseOptimizer(GraphElements):
         self.factor = None        # qdldl.Solver of the last factorisation (of this layout's pattern)
         self.statistics = []
 
-    def _values_changed(self):
+    def _values_changed(self) -> None:
         self._system = None
 
     @property
@@ -91,21 +85,20 @@ class SparseOptimizer(GraphElements):
     # ================================================================================ structure
     def initialize_optimization(self) -> bool:
         """Lay out X, every edge's place in H and b, and H's pattern (``layout``); GaugeFreedomError when a
-        component of free vertices is not anchored. Needed again after any element is added or removed, a vertex is
-        fixed or freed, or an edge's vertex is replaced."""
+        component of free vertices is not anchored. Needed again after any element is added or removed or a vertex
+        is fixed or freed."""
         layout = build_layout(self._vertex_store, self._edge_stores)
         self._layout, self._hessian_index, self._system, self.factor = layout, layout.hessian_index, None, None
         self._structure_stale = self._rebuild_needed = False
         self._dirty_edge_classes.clear()
         return True
 
-    def _require_layout(self, what: str):
+    def _require_layout(self, what: str) -> Layout:
         if self._layout is None:
             raise GraphError(f"{what}: the structure has not been built; call initialize_optimization() first")
         if self._structure_stale:
             raise GraphError(f"{what}: the graph's structure changed since initialize_optimization() (an element "
-                             "added or removed, a vertex fixed or freed, or an edge's vertex replaced); call "
-                             "initialize_optimization() again")
+                             "added or removed, or a vertex fixed or freed); call initialize_optimization() again")
         return self._layout
 
     # ================================================================================ the free state X
@@ -132,7 +125,7 @@ class SparseOptimizer(GraphElements):
         self._system = None
 
     # ================================================================================ linearisation
-    def _edge_terms(self, layout, jacobians: bool):
+    def _edge_terms(self, layout: Layout, jacobians: bool) -> Iterator[tuple]:
         """Per edge class: (its layout, W (E, m, m), e (E, m), J = [J_0 J_1 …] (E, m, D) or None)."""
         estimates = self._vertex_store.estimates.buffer
         for edges in layout.edges:
@@ -149,7 +142,7 @@ class SparseOptimizer(GraphElements):
             raise nonfinite_error(what, self._nonfinite_edges(False))
         return value
 
-    def _linearise(self, what: str):
+    def _linearise(self, what: str) -> tuple:
         """(χ², H's upper-triangle CSC data, b) at the current estimates (cached until a value changes)."""
         if self._system is not None:
             return self._system
@@ -214,26 +207,24 @@ class SparseOptimizer(GraphElements):
         NonFiniteError (naming the edges) when χ², H or b is not finite at the start or at a tried step; on any
         exception or interrupt the vertices hold the last accepted state."""
         max_iterations = integer(max_iterations, "max_iterations", minimum=0)
-        if not isinstance(algorithm, str) or algorithm not in self.ALGORITHMS:
-            raise ValueError(f"algorithm must be 'lm' or 'gn', got {algorithm!r}")
+        one_of(algorithm, "algorithm", self.ALGORITHMS)
         if tau is not None and algorithm != "lm":
             raise ValueError(f"tau sets the initial damping of algorithm='lm' only (got algorithm={algorithm!r})")
         if gn_tolerance is not None and algorithm != "gn":
             raise ValueError(f"gn_tolerance applies to algorithm='gn' only (got algorithm={algorithm!r})")
         tau = TAU if tau is None else positive_number(tau, "tau")
-        gn_tolerance = GN_TOLERANCE if gn_tolerance is None else _nonnegative(gn_tolerance, "gn_tolerance")
+        gn_tolerance = GN_TOLERANCE if gn_tolerance is None else nonnegative_number(gn_tolerance, "gn_tolerance")
         self._require_layout("optimize")
         self.statistics = []
         if self._layout.dimension == 0:
             return self.chi2()
-        self._x, t0 = self._get_x(), time.perf_counter()
-        record = lambda k, chi2, mu, rejected: self._record(k, chi2, mu, rejected, t0)   # noqa: E731
+        self._x, self._t0 = self._get_x(), time.perf_counter()
         try:
             self._chi2 = self._linearise("optimize: at the initial estimates")[0]
             if algorithm == "gn":
-                self._gauss_newton(max_iterations, gn_tolerance, record)
+                self._gauss_newton(max_iterations, gn_tolerance)
             else:
-                self._levenberg_marquardt(max_iterations, tau, record)
+                self._levenberg_marquardt(max_iterations, tau)
         finally:
             self._reject()                                # the accepted X (also after an error or interrupt)
         return self._chi2
@@ -252,7 +243,7 @@ class SparseOptimizer(GraphElements):
         """Go back to X."""
         self._set_x(self._x)
 
-    def _gauss_newton(self, max_iterations, tolerance, record):
+    def _gauss_newton(self, max_iterations: int, tolerance: float) -> None:
         for k in range(1, max_iterations + 1):
             _, data, b = self._linearise("optimize: at an accepted step")
             if np.max(np.abs(b)) < _SMALL:
@@ -265,15 +256,15 @@ class SparseOptimizer(GraphElements):
                 self._reject()
                 alpha *= 0.5
                 if alpha < _MIN_STEP:
-                    record(k, self._chi2, 0.0, 1)
+                    self._record(k, 0.0, 1)
                     return
             decrease = self._chi2 - r1
             self._accept(r1)
-            record(k, self._chi2, 0.0, 0)
+            self._record(k, 0.0, 0)
             if decrease < tolerance:
                 return
 
-    def _levenberg_marquardt(self, max_iterations, tau, record):
+    def _levenberg_marquardt(self, max_iterations: int, tau: float) -> None:
         _, data, b = self._linearise("optimize: at the initial estimates")
         if np.max(np.abs(b)) < _SMALL:
             return
@@ -301,15 +292,16 @@ class SparseOptimizer(GraphElements):
                 if not np.isfinite(mu):
                     stop = True
                     break
-            record(k, self._chi2, mu, rejected)
+            self._record(k, mu, rejected)
             if stop or np.sqrt(self._chi2) < _SMALL:
                 return
 
-    def _record(self, k, chi2, mu, rejected, t0):
-        entry = {"iteration": k, "chi2": chi2, "mu": mu, "rejected": rejected, "time": time.perf_counter() - t0}
+    def _record(self, k: int, mu: float, rejected: int) -> None:
+        entry = {"iteration": k, "chi2": self._chi2, "mu": mu, "rejected": rejected,
+                 "time": time.perf_counter() - self._t0}
         self.statistics.append(entry)
         if self.verbose:
-            print(f"Iteration = {k:03d}; Residual = {chi2:6.3f}; Time = {entry['time']:3.3f}")
+            print(f"Iteration = {k:03d}; Residual = {self._chi2:6.3f}; Time = {entry['time']:3.3f}")
 
     # ================================================================================ results
     def chi2(self) -> float:
@@ -328,7 +320,7 @@ class SparseOptimizer(GraphElements):
         self._require_layout("gradient")
         return self._linearise("gradient")[2].copy()
 
-    def compute_marginals(self, vertices=None) -> dict:
+    def compute_marginals(self, vertices: list | None = None) -> dict:
         """{vertex: covariance block} of H⁻¹ at the current estimates for ``vertices`` (default: all); a fixed
         vertex gets a zero block. GraphError when H is not positive definite (no covariance exists)."""
         vertices = self._own_vertices(vertices, "compute_marginals")
@@ -355,20 +347,12 @@ def _norm(v: np.ndarray) -> float:
     return float(np.sqrt(np.multiply(v, v).sum()))
 
 
-def _nonnegative(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not np.isfinite(value) \
-            or value < 0:
-        raise ValueError(f"{name} must be a finite number ≥ 0, got {value!r}")
-    return float(value)
-
-
-def _check_oplus_output(group, moved, objects) -> None:
+def _check_oplus_output(group, moved: np.ndarray, objects: list) -> None:
     """``oplus_batch`` of a vertex class must return finite (V, d) estimates (else GraphError / NonFiniteError)."""
     if np.shape(moved) != group.state_index.shape:
         raise GraphError(f"{group.cls.__name__}.oplus_batch returned shape {np.shape(moved)}; expected "
                          f"{group.state_index.shape} (one row per vertex)")
     if not np.isfinite(moved).all():
-        bad = group.handles[~np.isfinite(moved).all(axis=1)].tolist()
-        names = [f"id {objects[h].id}" if objects[h] is not None else f"handle {h}" for h in bad[:5]]
-        raise NonFiniteError(f"{group.cls.__name__}.oplus_batch returned non-finite estimates for {len(bad)} "
-                             f"vertex(es) [{', '.join(names)}] (a non-finite or overflowing step)")
+        ids = [objects[h].id for h in group.handles[~np.isfinite(moved).all(axis=1)][:5]]
+        raise NonFiniteError(f"{group.cls.__name__}.oplus_batch returned non-finite estimates for vertex ids {ids}"
+                             " (a non-finite or overflowing step)")

@@ -1,55 +1,48 @@
 """Vertices of the graph: the per-object API and the vectorised ⊞ (oplus) of each vertex class.
 
-A vertex class declares
-
-    dimension : int                       size of the state vector (and of the update)
-    oplus_batch(x, dx) -> x ⊞ dx          staticmethod on arrays of shape (V, dimension)
-
-``oplus_batch`` is the only implementation of the class's ⊞; the per-object ``oplus`` and the optimiser both
-call it. Ids are allocated per class from 0 at construction unless given explicitly.
-
-While a vertex belongs to a ``SparseOptimizer`` its estimate lives in the optimiser's flat state array (so the
-optimiser can gather and update all vertices at once); ``estimate`` / ``set_estimate`` read and write it there.
+A vertex class declares ``dimension`` (size of the state and of the update) and, if ⊞ is not plain addition, the
+staticmethod ``oplus_batch(x, dx)`` on arrays (V, dimension); the per-object ``oplus`` and the optimiser both call
+it. Ids are allocated per class from 0 unless given. While a vertex belongs to a ``SparseOptimizer`` its estimate
+lives in the optimiser's flat state array (so the optimiser can gather and update all vertices at once).
 """
-
+from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from ..validation import boolean
+from ..validation import boolean, float_array
 from .angles import wrap_angle
 
-__all__ = ["BaseVertex", "VertexSE2", "VertexPointXY"]
+__all__ = ["BaseVertex", "VertexSE2", "VertexPointXY", "as_rows"]
 
 
-def _as_vector(value, size, name):
-    """Validate and flatten a vector argument of length ``size`` (accepts (size,), (size, 1) or a scalar if size 1)."""
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a numeric vector of length {size}, got {value!r}") from None
-    if arr.ndim == 0 and size == 1:
-        arr = arr.reshape(1)
-    if arr.shape not in ((size,), (size, 1), (1, size)):
-        raise ValueError(f"{name} must have {size} elements (shape ({size},) or ({size}, 1)), got shape {arr.shape}")
-    arr = arr.reshape(size)
+def as_rows(value: ArrayLike, count: int, size: int, name: str) -> np.ndarray:
+    """``value`` as a finite (count, size) float array; ValueError naming ``name`` otherwise. One row may also be
+    given as (size,), (size, 1) or a scalar (size 1), and one column (size 1) as (count,)."""
+    arr = float_array(value, name)
+    if arr.shape != (count, size) and arr.ndim <= 2 and arr.size == count * size and (count == 1 or size == 1):
+        arr = arr.reshape(count, size)
+    if arr.shape != (count, size):
+        want = f"{size} elements" if count == 1 else f"shape ({count}, {size})"
+        raise ValueError(f"{name} must have {want}, got shape {arr.shape}")
     if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite (no NaN or inf), got {arr}")
-    return arr
+    return arr.copy()
 
 
 class BaseVertex:
-    """A state block of the graph. Subclasses set ``dimension`` and (optionally) override ``oplus_batch``.
-
-    Attributes/methods: ``id``, ``dimension``, ``estimate`` (copy), ``set_estimate(x)``, ``oplus(dx)``,
-    ``fixed`` / ``set_fixed(flag)``, ``edges()`` (in attachment order), ``number_of_edges()``,
-    ``hessian_index`` (first row of this vertex in the free state vector X, or None when fixed / not built /
-    removed from its graph), ``graph``.
-    """
+    """A state block of the graph: ``id``, ``dimension``, ``estimate`` (a copy) / ``set_estimate(x)``,
+    ``oplus(dx)``, ``fixed`` / ``set_fixed(flag)``, ``edges()`` (in attachment order), ``number_of_edges()``,
+    ``hessian_index`` (first row of this vertex in the free state vector X; None when fixed, not built or removed),
+    ``graph``."""
 
     dimension = 0
+    #: For a ⊞ that is not (locally) plain addition: staticmethod x (V, d) → M (V, d, d) = ∂(x ⊞ δ)/∂δ at δ = 0
+    #: (used by the advanced optimiser only).
+    oplus_jacobian_batch = None
     _counters = {}
 
-    def __init__(self, id=None, estimate=None, fixed=False):
+    def __init__(self, id: int | None = None, estimate: ArrayLike | None = None, fixed: bool = False) -> None:
         cls = type(self)
         dim = cls.dimension
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim <= 0:
@@ -59,85 +52,72 @@ class BaseVertex:
             id = counter[0]
         elif not isinstance(id, (int, np.integer)) or isinstance(id, bool):
             raise ValueError(f"vertex id must be an int, got {id!r}")
-        id = int(id)
-        counter[0] = max(counter[0], id + 1)
-        self._id = id
+        counter[0] = max(counter[0], int(id) + 1)
+        self._id = int(id)
         self._graph = None
-        self._h = -1  # handle inside the graph
-        self._est = np.zeros(cls.dimension)
+        self._h = -1                  # handle inside the graph
+        self._est = np.zeros(dim)
         self._fixed = boolean(fixed, f"{cls.__name__}(fixed)")
-        self._edges = {}  # insertion-ordered set of attached edges
-        self._hidx = None
+        self._edges = {}              # insertion-ordered set of attached edges
         if estimate is not None:
             self.set_estimate(estimate)
 
-    # ----- vectorised model -------------------------------------------------------------------------
     @staticmethod
-    def oplus_batch(x, dx):
+    def oplus_batch(x: np.ndarray, dx: np.ndarray) -> np.ndarray:
         """x ⊞ dx for arrays (V, d) → (V, d). Default: vector addition."""
         return x + dx
 
-    #: For a ⊞ that is not (locally) plain addition: staticmethod x (V, d) → M (V, d, d) = ∂(x ⊞ δ)/∂δ at δ = 0.
-    #: Edges give Jacobians with respect to the estimate's coordinates; the optimiser multiplies them by M.
-    oplus_jacobian_batch = None
-
-    # ----- per-object API ---------------------------------------------------------------------------
     @property
-    def id(self):
+    def id(self) -> int:
         return self._id
 
     @property
-    def graph(self):
+    def graph(self) -> object | None:
+        """The graph (a ``SparseOptimizer``) this element is in, or None."""
         return self._graph
 
     @property
-    def estimate(self):
+    def estimate(self) -> np.ndarray:
         if self._graph is not None:
-            return self._graph._vertex_estimate(self._h).copy()
+            return self._graph._read_vertex_estimate(self._h).copy()
         return self._est.copy()
 
-    def set_estimate(self, value):
-        x = _as_vector(value, type(self).dimension, f"{type(self).__name__}.set_estimate(estimate)")
+    def set_estimate(self, value: ArrayLike) -> None:
+        x = as_rows(value, 1, type(self).dimension, f"{type(self).__name__}.set_estimate(estimate)")[0]
         if self._graph is not None:
-            self._graph._set_vertex_estimate(self._h, x)
+            self._graph._write_vertex_estimate(self._h, x)
         else:
             self._est = x
 
-    def set_to_origin(self):
-        self.set_estimate(np.zeros(type(self).dimension))
-
-    def oplus(self, update):
+    def oplus(self, update: ArrayLike) -> None:
         """x ← x ⊞ update (through the class's vectorised ``oplus_batch``)."""
-        d = type(self).dimension
-        dx = _as_vector(update, d, f"{type(self).__name__}.oplus(update)")
-        self.set_estimate(type(self).oplus_batch(self.estimate[None, :], dx[None, :])[0])
+        dx = as_rows(update, 1, type(self).dimension, f"{type(self).__name__}.oplus(update)")
+        self.set_estimate(type(self).oplus_batch(self.estimate[None, :], dx)[0])
 
     @property
-    def fixed(self):
+    def fixed(self) -> bool:
         return self._fixed
 
-    def set_fixed(self, flag=True):
+    def set_fixed(self, flag: bool = True) -> None:
         """Fix (or free) the vertex. In a graph this changes the structure: call ``initialize_optimization()``
         again before the next ``optimize`` (which otherwise raises GraphError)."""
         flag = boolean(flag, f"{type(self).__name__}.set_fixed(flag)")
         if flag != self._fixed:
             self._fixed = flag
             if self._graph is not None:
-                self._graph._set_vertex_fixed(self._h, flag)
+                self._graph._write_vertex_fixed(self._h, flag)
 
-    def edges(self):
+    def edges(self) -> list:
         return list(self._edges)
 
-    def number_of_edges(self):
+    def number_of_edges(self) -> int:
         return len(self._edges)
 
     @property
-    def hessian_index(self):
-        if self._graph is None:
-            return None
-        return self._graph._vertex_hessian_index(self._h)
+    def hessian_index(self) -> int | None:
+        return None if self._graph is None else self._graph._vertex_hessian_start(self._h)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         state = "fixed" if self._fixed else "free"
         return f"{type(self).__name__}(id={self._id}, estimate={np.round(self.estimate, 6).tolist()}, {state})"
 
@@ -148,7 +128,7 @@ class VertexSE2(BaseVertex):
     dimension = 3
 
     @staticmethod
-    def oplus_batch(x, dx):
+    def oplus_batch(x: np.ndarray, dx: np.ndarray) -> np.ndarray:
         out = x + dx
         out[:, 2] = wrap_angle(out[:, 2])
         return out
@@ -158,7 +138,3 @@ class VertexPointXY(BaseVertex):
     """Planar point m = [x, y]; additive ⊞."""
 
     dimension = 2
-
-
-def _reset_counters():  # used by tests only
-    BaseVertex._counters.clear()

@@ -19,8 +19,8 @@ The class is a thin front over modules with one job each:
 The vertices always hold the accepted state when ``optimize`` returns, and also when it raises (any exception or
 interrupt restores the last accepted state first: ``algorithms.Algorithm.run``). Editing an edge's measurement,
 information or parameters after ``initialize_optimization`` needs no rebuild: the edited edge classes are
-re-gathered before the next linearisation. Adding/removing elements, fixing/freeing a vertex or replacing an edge's
-vertex changes the structure: ``optimize`` then asks for ``initialize_optimization()`` again.
+re-gathered before the next linearisation. Adding/removing elements or fixing/freeing a vertex changes the
+structure: ``optimize`` then asks for ``initialize_optimization()`` again.
 """
 
 import time
@@ -109,8 +109,7 @@ class FastOptimizer(GraphElements):
             raise GraphError(f"{what}: the structure has not been built; call initialize_optimization() first")
         if self._structure_stale:
             raise GraphError(f"{what}: the graph's structure changed since initialize_optimization() (an element "
-                             "added or removed, a vertex fixed or freed, or an edge's vertex replaced); call "
-                             "initialize_optimization() again")
+                             "added or removed, or a vertex fixed or freed); call initialize_optimization() again")
         if self._dirty_edge_classes:
             refresh_edge_values(self._structure, self._vertex_store, self._dirty_edge_classes)
             self._dirty_edge_classes.clear()

@@ -22,6 +22,8 @@ computed once per scan and read by every test here and in ``closure``.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ...graph import EdgeSE2PointXY
@@ -86,7 +88,10 @@ def ambiguous_pairings(algorithm, problem, R, idx, options, tentative) -> list:
         keep = np.flatnonzero(np.arange(len(idx)) != k)
         if keep.size == 0:                  # no other candidate: no alternative
             continue
-        alt = associate(algorithm, problem.subset(keep), None, problem.n_sigma, options, R)
+        r = (problem.d * keep[:, None] + np.arange(problem.d)).ravel()     # the problem without candidate k
+        sub = replace(problem, mu=problem.mu[keep], P=problem.P[np.ix_(r, r)], ic_d2=problem.ic_d2[keep],
+                      logdet=problem.logdet[keep])
+        alt = associate(algorithm, sub, None, problem.n_sigma, options, R)
         other = keep[np.flatnonzero(alt.idx == i)]
         if alt.n_pairings >= n_pairings and other.size and not (tentative[other[0]] and not tentative[k]):
             out.append(int(k))

@@ -25,7 +25,6 @@ from __future__ import annotations
 import numpy as np
 
 from ...graph import BaseEdge, BaseVertex, check_information
-from ...graph.edge import check_information_batch
 from ...validation import float_array
 from ..fast_graph import FastOptimizer
 from .models import RangeBearingModel
@@ -121,7 +120,7 @@ def check_scan(model, Z, R, information, noise_cache: dict):
         if information.shape == (d, d):
             check_information(information, d, "information")          # cached by value: cheap per scan
         elif information.shape == (Z.shape[1], d, d):
-            check_information_batch(information, d, "information")
+            check_information(information, d, "information", count=Z.shape[1])
     if information.shape == (d, d):
         full = np.empty((Z.shape[1], d, d))
         full[:] = information

@@ -42,7 +42,7 @@ import numpy as np
 
 from ...datasets import build_optimizer, read_dataset
 from ...graph import EdgeRangeBearing, EdgeSE2, VertexPointXY, VertexSE2
-from ...validation import boolean, integer, positive_number, same_setting
+from ...validation import boolean, integer, positive_number
 from ..fast_graph import FastOptimizer
 from .algorithms import check_algorithm
 from .frontend import OnlineFrontEnd
@@ -241,6 +241,18 @@ def _check_noise_model(measurement_sigmas, odometry_scale) -> None:
                          f"σ_bearing [rad]), got {measurement_sigmas!r}")
 
 
+def _same_setting(value: object, default: object) -> bool:
+    """Whether an option's ``value`` is its ``default``: the same object, or equal and of the same kind (a bool only
+    as a bool, a number as a number, text as text)."""
+    if value is default:
+        return True
+    if isinstance(default, bool) or isinstance(value, (bool, np.bool_)):
+        return isinstance(value, (bool, np.bool_)) and isinstance(default, bool) and bool(value) == default
+    if isinstance(default, numbers.Real) and isinstance(value, numbers.Real):
+        return value == default
+    return isinstance(default, str) and isinstance(value, str) and value == default
+
+
 def run_victoria_park(data_association: str | None = "jcbb", optimization_period: int = 10, n_sigma: float = 3.0,
                       rules: ConfirmationRules | None = None, measurement_sigmas=None, odometry_scale: float = 1.0,
                       late_association: bool = False, known_id_reference: bool = True,
@@ -262,7 +274,7 @@ def run_victoria_park(data_association: str | None = "jcbb", optimization_period
     else:
         for name, value, default in (("n_sigma", n_sigma, 3.0), ("rules", options["rules"], VICTORIA_PARK_RULES),
                                      ("late_association", late_association, False)):
-            if not (same_setting(value, default) or isinstance(value, ConfirmationRules) and value == default):
+            if not (_same_setting(value, default) or isinstance(value, ConfirmationRules) and value == default):
                 raise ValueError(f"{name}={value!r} has no effect without data association (data_association=None "
                                  f"runs the known-id pipeline); pass an algorithm or leave {name} at its default")
     stream = _with_sigmas(victoria_park_scans(read_dataset("victoria_park")), measurement_sigmas, odometry_scale)

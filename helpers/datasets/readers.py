@@ -1,11 +1,15 @@
-"""Readers of the TORO ``.graph`` and 2-D g2o formats (formats and conventions: the package docstring)."""
+"""Readers of the TORO ``.graph``, 2-D g2o and Victoria Park formats (formats and conventions: the package
+docstring)."""
+from __future__ import annotations
+
+import os
 
 import numpy as np
 
 from .graph_data import GraphData, initial_values, merge_in_file_order
 from .records import check_distinct_ends, check_spd, check_unique, fail, first_bad, ids, scan, sym3
 
-__all__ = ["read_toro", "read_g2o"]
+__all__ = ["read_toro", "read_g2o", "read_victoria_park"]
 
 _TORO = {"VERTEX2": 4, "EDGE2": 11, "EQUIV": 2, "BR": 6}
 _G2O = {"VERTEX_SE2": 4, "VERTEX_XY": 3, "EDGE_SE2": 11, "EDGE_SE2_XY": 7, "FIX": 1, "LANDMARK2": 7,
@@ -14,10 +18,8 @@ _G2O = {"VERTEX_SE2": 4, "VERTEX_XY": 3, "EDGE_SE2": 11, "EDGE_SE2_XY": 7, "FIX"
 
 def _edge2_information(path, lines, v):
     """EDGE2's six information numbers, in TORO order (I11 I12 I22 I33 I13 I23) unless the file's matrices are
-    all diagonal in g2o order (I11 0 0 I22 0 I33), the pattern GTSAM's NoiseFormatAUTO recognises as such (the
-    EDGE2 lines of GTSAM's w100_30.g2o and w20000.txt). The two diagonal patterns exclude each other, and a
-    g2o-pattern line read in TORO order would have I22 = 0 (not positive definite), so the choice never changes
-    the reading of a valid TORO file. A file with lines of both patterns is an error."""
+    all diagonal in g2o order (I11 0 0 I22 0 I33), as GTSAM's NoiseFormatAUTO decides (w100_30.g2o, w20000.txt).
+    A valid TORO file never has that pattern (I22 would be 0); a file with both patterns is an error."""
     nz = v != 0
     toro_diag = nz[:, 0] & ~nz[:, 1] & nz[:, 2] & nz[:, 3] & ~nz[:, 4] & ~nz[:, 5]
     g2o_diag = nz[:, 0] & ~nz[:, 1] & ~nz[:, 2] & nz[:, 3] & ~nz[:, 4] & nz[:, 5]
@@ -54,7 +56,7 @@ def _require_records(path, data):
         fail(path, None, "has no vertex or edge records")
 
 
-def read_toro(path):
+def read_toro(path: str | os.PathLike) -> GraphData:
     """Read a TORO ``.graph`` file (VERTEX2, EDGE2, EQUIV ignored, and GTSAM's BR lines)."""
     data = GraphData(path)
     rec = scan(path, _TORO)
@@ -134,7 +136,7 @@ def _check_g2o_ids(path, data, rec, parts):
     return fixed
 
 
-def read_g2o(path):
+def read_g2o(path: str | os.PathLike) -> GraphData:
     """Read a 2-D g2o file (VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY, FIX; GTSAM's LANDMARK2; TORO's
     VERTEX2 and EDGE2, which GTSAM's readG2o also reads)."""
     data = GraphData(path)
@@ -153,5 +155,50 @@ def read_g2o(path):
                                     "VERTEX_XY / EDGE_SE2_XY points (in the g2o id space): ambiguous")
     merge_in_file_order(data, parts + [landmarks])
     _require_records(path, data)
+    initial_values(data)
+    return data
+
+
+#: GTSAM's load2D takes a LANDMARK covariance as isotropic when |c_xx − c_yy| < 1e-4
+_ISOTROPY_TOLERANCE = 1e-4
+
+
+def _check_landmarks(path, ln, v):
+    """c_xx > 0; isotropic (c_xy = 0, c_xx ≈ c_yy: the only case load2D converts); not at the sensor."""
+    if (v[:, 4] <= 0).any():
+        fail(path, ln[first_bad(v[:, 4] <= 0)], "LANDMARK: c_xx must be positive")
+    aniso = (v[:, 5] != 0) | ~(np.abs(v[:, 4] - v[:, 6]) < _ISOTROPY_TOLERANCE)
+    if aniso.any():
+        t = first_bad(aniso)
+        fail(path, ln[t], f"LANDMARK: the covariance must be isotropic (c_xy = 0, c_xx = c_yy), got "
+                          f"{v[t, 4]:g} {v[t, 5]:g} {v[t, 6]:g}; load2D's range-bearing conversion needs it")
+    at_sensor = (v[:, 2] == 0) & (v[:, 3] == 0)
+    if at_sensor.any():
+        fail(path, ln[first_bad(at_sensor)], "LANDMARK: the landmark is at (0, 0), on the sensor: its bearing is "
+                                             "undefined")
+
+
+def read_victoria_park(path: str | os.PathLike) -> GraphData:
+    """Read GTSAM's victoria_park.txt (ODOMETRY with covariance, LANDMARK in Cartesian robot-frame coordinates)."""
+    data = GraphData(path)
+    rec = scan(path, {"ODOMETRY": 11, "LANDMARK": 7})
+    parts = []
+    ln, v = rec["ODOMETRY"]
+    ij = ids(path, "ODOMETRY", ln, v[:, :2])
+    check_distinct_ends(path, "ODOMETRY", ln, ij)
+    cov = sym3(*v[:, 5:11].T)
+    check_spd(path, "ODOMETRY", ln, cov, "covariance")
+    parts.append((ln, "se2", ij, v[:, 2:5].copy(), np.linalg.inv(cov) if len(cov) else cov))
+    ln, v = rec["LANDMARK"]
+    ij = ids(path, "LANDMARK", ln, v[:, :2])
+    _check_landmarks(path, ln, v)
+    z = np.stack([np.hypot(v[:, 2], v[:, 3]), np.arctan2(v[:, 3], v[:, 2])], axis=1)
+    info = np.zeros((len(v), 2, 2))
+    info[:, 0, 0] = 1.0 / v[:, 4]
+    info[:, 1, 1] = 10.0 / v[:, 4]
+    parts.append((ln, "rb", ij, z, info))
+    merge_in_file_order(data, parts)
+    if not data.edges:
+        fail(path, None, "has no ODOMETRY or LANDMARK records")
     initial_values(data)
     return data
