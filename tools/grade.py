@@ -1,23 +1,27 @@
-"""Grade the exercises: run the unit tests once and report per exercise (``make grade``, ``make grade EX=name``).
+"""Grade the exercises: run each exercise's own tests and say what failed and why (``make grade [EX=name]``).
 
-    python tools/grade.py [NAME] [--student-ok] [--exercises-only] [--status FILE] [--verbose]
+    python tools/grade.py [NAME ...] [--student-ok] [--status FILE] [--verbose]
+    python tools/grade.py NAME --isolate        # the answer key: every OTHER exercise's targets raise
 
-Runs pytest in-process over ``tests/`` (of the tree this file is in), maps every test to its exercise through
-``tools/exercises.toml`` (node ids or node-id prefixes) and prints one line per exercise,
+An exercise ``NAME`` is graded by ``tests/exercises/test_NAME.py`` (the public tests, shipped with the student
+edition) and, where present, ``tests/exercises/test_NAME_hidden.py`` (the instructor's value checks, only in the
+answer key). Those tests call only that exercise and code that is not an exercise (inputs other exercises would
+produce come from recorded fixtures), so every exercise is graded on its own, in seconds. Output, per exercise:
 
-    lab8_2a_individual_compatibility    passed
-    lab8_2c_joint_compatibility         FAILED  test_joint_compatibility_published: ExerciseNotImplemented: ...
+    lab8_2a_individual_compatibility   passed    (6 checks)
+    lab8_2c_joint_compatibility        FAILED    2 of 7 checks failed
+      ✗ the surprisal with nothing associated (test_nothing_associated)
+          expected: 12.0
+          actual:   0.0
+        hint: with no pairing every landmark is unassociated and pays the surprisal s_U.
+    l09_jcbb                           not written yet
 
-then exactly two summary lines: ``exercises: N passed, M failed`` and ``other tests: K passed, L failed`` (the
-tests of no exercise). With NAME only that exercise is graded (the other tests still run and are reported).
-An exercise passes when all its tests pass (and at least one ran). In the student edition (a tree with
-EXERCISES.md) the registry's answer-key-only tests are not run.
-
-Exit status: 0 when every graded exercise and every other test passed, else 1; with ``--student-ok`` (the
-student edition's ``make test``) 0 whenever the other tests passed, so unfinished exercises do not fail it.
-``--status FILE`` writes the names of the passed exercises as JSON (the student ``make test`` picks notebooks
-with it); ``--exercises-only`` runs only the tests the registry lists (the verdicts of a tree whose tests all
-pass, such as the answer key's, without running the other tests again); ``--verbose`` shows pytest's own output.
+then ``exercises: N passed, M failed``. Hints come from the registry (``tools/exercises.toml``, ``hints``: one per
+test function). Exit status: 0 when every graded exercise passed, else 1; with ``--student-ok`` (the student
+edition's ``make test``) 0 unless the grading itself broke. ``--status FILE`` writes the passed exercises as JSON;
+``--verbose`` shows pytest's own output. ``--isolate`` (one exercise, in the answer key) first swaps the code
+of every other exercise's target functions for a stub that raises ``ExerciseNotImplemented``, as the student
+edition does: the exercise's tests must pass anyway (the check that they need no other exercise).
 """
 from __future__ import annotations
 
@@ -31,163 +35,183 @@ import tomllib
 from contextlib import redirect_stderr, redirect_stdout
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-REGISTRY = ROOT / "tools" / "exercises.toml"
+TESTS = pathlib.Path("tests") / "exercises"
+MAX_LINES = 14                      # of one failure's text
 
 
-def load(root=ROOT):
+def load(root=ROOT) -> dict:
     with open(pathlib.Path(root) / "tools" / "exercises.toml", "rb") as fh:
         return tomllib.load(fh)
 
 
-def is_student_edition(root=ROOT) -> bool:
-    return (pathlib.Path(root) / "EXERCISES.md").exists()
+def test_files(name: str, root=ROOT) -> list[pathlib.Path]:
+    """The test files of exercise ``name`` present in the tree at ``root`` (public first, then hidden)."""
+    files = [TESTS / ("test_%s.py" % name), TESTS / ("test_%s_hidden.py" % name)]
+    return [f for f in files if (pathlib.Path(root) / f).exists()]
 
 
-def matches(nodeid: str, pattern: str) -> bool:
-    """A registry entry names a test (with or without parameters) or a node-id prefix."""
-    return nodeid == pattern or nodeid.startswith(pattern) or nodeid.split("[")[0] == pattern
-
-
-def exercise_of(nodeid: str, exercises) -> str | None:
-    for ex in exercises:
-        if any(matches(nodeid, p) for p in ex["tests"]):
-            return ex["name"]
-    return None
+def exercise_of(nodeid: str) -> str:
+    """``tests/exercises/test_NAME[_hidden].py::...`` → NAME."""
+    stem = pathlib.PurePosixPath(nodeid.split("::")[0]).stem
+    return re.sub(r"_hidden$", "", stem[len("test_"):])
 
 
 class Collector:
-    """pytest plugin: deselects what is not graded and records each test's outcome and first failure."""
+    """pytest plugin: each test's outcome and, for a failure, the text a student can act on."""
 
-    def __init__(self, exercises, only=None, skip=(), exercises_only=False):
-        self.exercises, self.only, self.skip = exercises, only, tuple(skip)
-        self.exercises_only = exercises_only
-        self.outcome, self.failure, self.errors = {}, {}, []
+    def __init__(self):
+        self.outcome, self.failure, self.doc, self.errors = {}, {}, {}, []
 
     def pytest_collection_modifyitems(self, session, config, items):
-        keep, drop = [], []
         for item in items:
-            ex = exercise_of(item.nodeid, self.exercises)
-            skipped = any(matches(item.nodeid, p) for p in self.skip)
-            ungraded = (self.only and ex not in (None, self.only)) or (self.exercises_only and ex is None)
-            (drop if skipped or ungraded else keep).append(item)
-        if drop:
-            config.hook.pytest_deselected(items=drop)
-        items[:] = keep
+            doc = (getattr(item, "function", None).__doc__ or "") if hasattr(item, "function") else ""
+            self.doc[item.nodeid] = " ".join(doc.split()).split(". ")[0].rstrip(".")
 
     def pytest_collectreport(self, report):
         if report.failed:
-            self.errors.append("%s: %s" % (report.nodeid or "collection", _first_line(report)))
+            self.errors.append((report.nodeid, _failure_text(report)))
 
     def pytest_runtest_logreport(self, report):
         if report.failed:
             self.outcome[report.nodeid] = "failed"
-            self.failure.setdefault(report.nodeid, _first_line(report))
+            self.failure.setdefault(report.nodeid, _failure_text(report))
         elif report.when == "call" or report.skipped:
             self.outcome.setdefault(report.nodeid, "skipped" if report.skipped else "passed")
 
 
-def _first_line(report) -> str:
+def _failure_text(report) -> str:
+    """The failure as the student should read it: our check's message (what / given / expected / actual), or the
+    exception the student's code raised with the line of helpers/ it came from; hypothesis's example after it."""
+    text = getattr(report, "longreprtext", "") or str(getattr(report, "longrepr", ""))
     crash = getattr(getattr(report, "longrepr", None), "reprcrash", None)
-    text = crash.message if crash is not None else str(getattr(report, "longrepr", "") or "")
-    line = next((ln.strip() for ln in text.splitlines() if ln.strip()), "failed")
-    if "is not implemented yet" in line:           # an exercise stub: name it, drop the advice
-        line = "ExerciseNotImplemented: " + line.split("ExerciseNotImplemented: ", 1)[-1].split(". Its task")[0]
-    return line if len(line) <= 160 else line[:157] + "..."
+    message = crash.message if crash is not None else text.strip().splitlines()[-1:] and text.strip().splitlines()[-1]
+    stub = re.search(r"exercise (\w+) is not implemented yet", text)
+    if stub:
+        return "not written yet: exercise %s raises ExerciseNotImplemented" % stub.group(1)
+    if message.startswith("AssertionError: check:"):
+        body = message[len("AssertionError: "):]
+    else:                                                    # the student's code raised: where, and what
+        where = [ln.strip() for ln in text.splitlines() if re.match(r"^\s*(helpers|tests)[/\\].*:\d+: ", ln)]
+        body = message + ("\n  raised at %s" % where[-1].rsplit(":", 1)[0] if where else "")
+    example = re.search(r"^Falsifying example:.*?(?=^\S|\Z)", text, re.M | re.S)
+    if example:
+        body += "\n  " + example.group(0).strip().replace("\n", "\n  ")
+    lines = body.splitlines()
+    return "\n".join(lines[:MAX_LINES] + (["  ..."] if len(lines) > MAX_LINES else []))
 
 
-def run_tests(collector, root=ROOT, verbose=False) -> int:
+def isolate(keep: str, exercises) -> int:
+    """Swap the code of every target of the exercises other than ``keep`` for a raising stub; returns how many.
+    The function objects stay (references imported elsewhere see the stub too)."""
+    import importlib
+
+    count = 0
+    for ex in exercises:
+        if ex["name"] == keep:
+            continue
+        for target in ex["targets"]:
+            module, _, qualname = target.partition(":")
+            owner = importlib.import_module(module)
+            *path, attr = qualname.split(".")
+            for part in path:
+                owner = getattr(owner, part)
+            func = owner.__dict__[attr] if isinstance(owner, type) else getattr(owner, attr)
+            namespace = {}
+            exec("def stub(*args, **kwargs):\n    raise __import__('helpers.exercises', fromlist=['_'])"
+                 ".ExerciseNotImplemented(%r, 'the isolation check')" % ex["name"], namespace)
+            func.__code__ = namespace["stub"].__code__
+            count += 1
+    return count
+
+
+def run_tests(files, collector, root=ROOT, verbose=False) -> int:
     import pytest
 
     os.chdir(root)
     sys.path.insert(0, str(root))
-    args = ["-q", "-p", "no:cacheprovider", "-p", "no:randomly", "--tb=short", "tests"]
-    buffer = io.StringIO()
+    args = ["-q", "-p", "no:cacheprovider", "-p", "no:randomly", "--tb=long", "-W", "error",
+            "-o", "addopts="] + [str(f) for f in files]
     if verbose:
         return pytest.main(args, plugins=[collector])
+    buffer = io.StringIO()
     with redirect_stdout(buffer), redirect_stderr(buffer):
         code = pytest.main(args, plugins=[collector])
-    if code not in (0, 1, 5) or collector.errors:      # interrupted, internal or usage error, collection errors
+    if code not in (0, 1, 5):                                 # interrupted, internal or usage error
         sys.stdout.write(buffer.getvalue()[-6000:])
     return code
 
 
-def stub_named(failure: str, exercises) -> str | None:
-    """The exercise whose stub a test's failure line names (``ExerciseNotImplemented: exercise NAME …``), if any.
-
-    A test that is not listed in the registry but stops at an exercise's stub grades with that exercise: it
-    cannot pass before the exercise is done, and it passes (as an other test's would) once it is."""
-    match = re.search(r"ExerciseNotImplemented: exercise (\w+)", failure)
-    names = {ex["name"] for ex in exercises}
-    return match.group(1) if match and match.group(1) in names else None
-
-
-def report(collector, exercises, only=None):
-    """Print the per-exercise lines and the two summary lines; returns (ex_passed, ex_failed, other_p, other_f)."""
-    graded = [ex for ex in exercises if only in (None, ex["name"])]
-    width = max(len(ex["name"]) for ex in graded) + 2
-    by_ex = {ex["name"]: [] for ex in graded}
-    other = []
+def report(collector, exercises) -> list[str]:
+    """Print one block per exercise and the summary line; returns the names of the passed exercises."""
+    width = max(len(ex["name"]) for ex in exercises) + 2
+    by_ex = {ex["name"]: [] for ex in exercises}
     for nodeid, outcome in collector.outcome.items():
-        ex = exercise_of(nodeid, exercises) or stub_named(collector.failure.get(nodeid, ""), exercises)
-        (by_ex[ex] if ex in by_ex else other if ex is None else []).append((nodeid, outcome))
-    status = {}
-    for ex in graded:
-        results = sorted(by_ex[ex["name"]])
+        by_ex.setdefault(exercise_of(nodeid), []).append((nodeid, outcome))
+    for nodeid, text in collector.errors:
+        by_ex.setdefault(exercise_of(nodeid), []).append((nodeid, "failed"))
+        collector.failure[nodeid] = "the test file does not import: " + text
+    passed = []
+    for ex in exercises:
+        results = by_ex[ex["name"]]
         failed = [n for n, o in results if o == "failed"]
         ran = [n for n, o in results if o != "skipped"]
-        status[ex["name"]] = bool(ran) and not failed
-        if status[ex["name"]]:
-            print("%s passed" % ex["name"].ljust(width))
+        name = ex["name"].ljust(width)
+        if ran and not failed:
+            passed.append(ex["name"])
+            print("%s passed    (%d checks)" % (name, len(ran)), flush=True)
             continue
-        first = failed[0] if failed else None
-        why = ("%s: %s" % (first.split("::", 1)[-1], collector.failure.get(first, "failed"))) if first \
-            else "no test of this exercise ran (check its tests in tools/exercises.toml)"
-        print("%s FAILED  %s" % (ex["name"].ljust(width), why))
-    for ex in graded:
-        missing = [n for n in ex["needs"] if status.get(n) is False]
-        if not status[ex["name"]] and missing:
-            print("  (%s also needs: %s)" % (ex["name"], ", ".join(missing)))
-    other_failed = sorted(n for n, o in other if o == "failed")
-    for nodeid in other_failed[:20]:
-        print("other test FAILED  %s: %s" % (nodeid, collector.failure.get(nodeid, "failed")))
-    if len(other_failed) > 20:
-        print("  ... and %d more other tests failed" % (len(other_failed) - 20))
-    for err in collector.errors:
-        print("collection error: %s" % err)
-    n_pass = sum(status.values())
-    o_pass = sum(1 for _, o in other if o == "passed")
-    o_fail = sum(1 for _, o in other if o == "failed") + len(collector.errors)
-    print("exercises: %d passed, %d failed" % (n_pass, len(graded) - n_pass))
-    print("other tests: %d passed, %d failed" % (o_pass, o_fail))
-    return n_pass, len(graded) - n_pass, o_pass, o_fail, sorted(n for n, ok in status.items() if ok)
+        if not ran:
+            print("%s FAILED    no test of this exercise ran" % name)
+            continue
+        texts = [collector.failure.get(n, "failed") for n in failed]
+        if all(t.startswith("not written yet") for t in texts):
+            print("%s not written yet" % name)
+            continue
+        print("%s FAILED    %d of %d checks failed" % (name, len(failed), len(ran)))
+        hints = ex.get("hints", {})
+        for nodeid in failed[:3]:
+            func = nodeid.split("::")[-1].split("[")[0]
+            title = collector.doc.get(nodeid) or func
+            print("  ✗ %s (%s)" % (title, nodeid.split("::", 1)[-1]))
+            print("      " + collector.failure.get(nodeid, "failed").replace("\n", "\n      "))
+            if func in hints:
+                print("    hint: " + " ".join(hints[func].split()))
+        if len(failed) > 3:
+            print("  ... and %d more (make grade EX=%s, or tools/grade.py %s --verbose)"
+                  % (len(failed) - 3, ex["name"], ex["name"]))
+    print("exercises: %d passed, %d failed" % (len(passed), len(exercises) - len(passed)), flush=True)
+    return passed
 
 
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    student_ok = "--student-ok" in argv
-    verbose = "--verbose" in argv
     status_file = argv.pop(argv.index("--status") + 1) if "--status" in argv else None
     names = [a for a in argv if not a.startswith("--")]
-    registry = load()
-    exercises = registry["exercise"]
-    for ex in exercises:
-        ex.setdefault("needs", [])
-    only = names[0] if names else None
-    if only is not None and only not in {ex["name"] for ex in exercises}:
-        print("unknown exercise %r; the exercises are: %s" % (only, ", ".join(ex["name"] for ex in exercises)))
+    exercises = load()["exercise"]
+    known = [ex["name"] for ex in exercises]
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        print("unknown exercise %s; the exercises are: %s" % (", ".join(unknown), ", ".join(known)))
         return 2
-    skip = registry.get("edition", {}).get("answer_key_only_tests", []) if is_student_edition() else []
-    collector = Collector(exercises, only, skip, exercises_only="--exercises-only" in argv)
-    code = run_tests(collector, verbose=verbose)
-    _, ex_failed, _, other_failed, passed = report(collector, exercises, only)
+    graded = [ex for ex in exercises if not names or ex["name"] in names]
+    files = [f for ex in graded for f in test_files(ex["name"])]
+    collector = Collector()
+    if "--isolate" in argv:
+        if len(graded) != 1:
+            print("--isolate grades one exercise at a time")
+            return 2
+        sys.path.insert(0, str(ROOT))
+        print("isolation: %d targets of other exercises raise" % isolate(graded[0]["name"], exercises))
+    code = run_tests(files, collector, verbose="--verbose" in argv) if files else 5
+    passed = report(collector, graded)
     if status_file:
         pathlib.Path(status_file).parent.mkdir(parents=True, exist_ok=True)
         pathlib.Path(status_file).write_text(json.dumps({"passed": passed}), encoding="utf-8")
     if code not in (0, 1, 5):
         return 1
-    if student_ok:
-        return 1 if other_failed else 0
-    return 1 if (ex_failed or other_failed) else 0
+    if "--student-ok" in argv:
+        return 0
+    return 0 if len(passed) == len(graded) else 1
 
 
 if __name__ == "__main__":
