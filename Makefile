@@ -48,11 +48,11 @@ bench:
 student:
 	@$(TASK) student
 
-## Grade the exercises: one line each, then `exercises: ...` and `other tests: ...`; one: `make grade EX=name`.
+## Check the exercises (each runs only its own tests, tests/exercises/): `make grade EX=name` one, `make grade` all.
 grade:
 	@$(TASK) grade $(EX)
 
-## The CI check of the student edition (builds it, grades it and the answer key); CI=true make test runs it.
+## The CI check of the student edition (every exercise alone, every notebook with only its exercises); CI=true make test runs it.
 student-check:
 	@$(TASK) student-check
 

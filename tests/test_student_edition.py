@@ -60,7 +60,6 @@ name = "ex_area"
 source = "Sheet 1, task a"
 task = "Compute the area."
 targets = ["pkg.shapes:area"]
-tests = ["tests/test_shapes.py::test_area"]
 notebooks = ["01_demo"]
 
 [[exercise]]
@@ -68,8 +67,6 @@ name = "ex_perimeter"
 source = "Sheet 1, task b"
 task = "Compute the perimeter."
 targets = ["pkg.shapes:Shape.perimeter"]
-tests = ["tests/test_shapes.py::test_perimeter"]
-needs = ["ex_area"]
 '''
 
 
@@ -93,10 +90,22 @@ def tree(tmp_path):
     (root / "secret").mkdir()
     (root / "secret" / "answers.txt").write_text("42", encoding="utf-8")
     (root / "README.md").write_text("# Demo\n\n## Use\n\nRun it.\n\n## Benchmarks\n\nTimes.\n", encoding="utf-8")
+    (root / "tools" / "student_readme.md").write_text("# Student edition\n\n{n} exercises.\n", encoding="utf-8")
+    (root / "tests" / "exercises" / "fixtures").mkdir(parents=True)
+    for name in ("ex_area", "ex_perimeter"):
+        (root / "tests" / "exercises" / ("test_%s.py" % name)).write_text("def test_x():\n    pass\n", encoding="utf-8")
+    (root / "tests" / "exercises" / "test_ex_area_hidden.py").write_text("# expected 6\n", encoding="utf-8")
+    (root / "tests" / "exercises" / "fixtures" / "ex_area_hidden.npz").write_bytes(b"")
+    (root / "tests" / "exercises" / "fixtures" / "ex_area.npz").write_bytes(b"")
+    (root / "tests" / "test_key.py").write_text("def test_key():\n    pass\n", encoding="utf-8")
     (root / "notebooks").mkdir()
+    answer = {"cell_type": "markdown", "id": "why", "metadata": {"tags": ["answer"], "question": "Why is it 6?"},
+              "source": ["Because the width times the height of this rectangle is six square units."]}
+    check = _code("claims", "assert x == 1\n", "")
+    check["metadata"] = {"tags": ["check"], "jupyter": {"source_hidden": True}}
     nb = _notebook({"cell_type": "markdown", "id": "title", "metadata": {}, "source": ["# 01 demo"]},
-                   _code("first", "x = 1\n", "1\n"), _code("keep-me", "print(2)\n", "2\n"),
-                   _code("strip-me", "print(3)\n", "3\n"))
+                   _code("first", "x = 1\n", "1\n"), check, _code("keep-me", "print(2)\n", "2\n"),
+                   _code("strip-me", "print(3)\n", "3\n"), answer)
     (root / "notebooks" / "01_demo.ipynb").write_text(json.dumps(nb), encoding="utf-8")
     return root
 
@@ -153,9 +162,10 @@ def test_copy_solution_restores_the_answer_key_body(tree, tmp_path):
 
 def test_registry_errors_name_the_problem(tree):
     path = tree / "tools" / "exercises.toml"
-    path.write_text(REGISTRY.replace('needs = ["ex_area"]', 'needs = ["ex_missing"]'), encoding="utf-8")
-    with pytest.raises(student.BuildError, match="unknown exercises"):
+    (tree / "tests" / "exercises" / "test_ex_perimeter.py").unlink()
+    with pytest.raises(student.BuildError, match="no tests/exercises/test_ex_perimeter.py"):
         student.load_registry(tree)
+    (tree / "tests" / "exercises" / "test_ex_perimeter.py").write_text("", encoding="utf-8")
     path.write_text(REGISTRY.replace('"pkg.shapes:area"', '"pkg.shapes:volume"'), encoding="utf-8")
     with pytest.raises(student.BuildError, match="no function volume"):
         student.build(tree.parent / "student", root=tree, quiet=True)
@@ -165,64 +175,84 @@ def test_notebooks_readme_and_exercises_document(tree, tmp_path):
     dest = student.build(tmp_path / "student", root=tree, quiet=True)
     nb = json.loads((dest / "notebooks" / "01_demo.ipynb").read_text(encoding="utf-8"))
     ids = [c["id"] for c in nb["cells"]]
-    assert ids[:2] == ["title", student_docs.EXERCISE_CELL_ID]
+    assert ids == ["title", student_docs.EXERCISE_CELL_ID, "first", "keep-me", "strip-me", "why-question", "why"]
     cells = {c["id"]: c for c in nb["cells"]}
     assert "ex_area" in "".join(cells[student_docs.EXERCISE_CELL_ID]["source"])
     assert "".join(cells["first"]["source"]).startswith(student_docs.NOTEBOOK_IMPORT + "\n")
     assert cells["keep-me"]["outputs"] and cells["keep-me"]["execution_count"] == 1
     assert cells["strip-me"]["outputs"] == [] and cells["strip-me"]["execution_count"] is None
-    readme = (dest / "README.md").read_text(encoding="utf-8")
-    assert readme.startswith("# SLAM course workbook — student edition") and "## Use" in readme
-    assert "## Benchmarks" not in readme
+    assert "".join(cells["why-question"]["source"]) == "**Question.** Why is it 6?"
+    assert cells["why"]["metadata"]["tags"] == ["student-answer"] and "six square" not in json.dumps(nb)
+    assert (dest / "README.md").read_text(encoding="utf-8") == "# Student edition\n\n2 exercises.\n"
     doc = (dest / "EXERCISES.md").read_text(encoding="utf-8")
-    assert "## ex_perimeter" in doc and "*Needs:* `ex_area`" in doc and "`Shape.perimeter` in `pkg/shapes.py`" in doc
+    assert "## ex_perimeter" in doc and "`Shape.perimeter` in `pkg/shapes.py`" in doc
+    assert "tests/exercises/test_ex_perimeter.py" in doc
+    shipped = sorted(p.relative_to(dest).as_posix() for p in (dest / "tests").rglob("*") if p.is_file())
+    assert shipped == ["tests/exercises/fixtures/ex_area.npz", "tests/exercises/test_ex_area.py",
+                       "tests/exercises/test_ex_perimeter.py"]
 
 
-def test_grader_matching_and_report(capsys):
-    assert grade.matches("tests/t.py::test_a[1-2]", "tests/t.py::test_a")
-    assert grade.matches("tests/t.py::test_bad[nn-text]", "tests/t.py::test_bad[nn-")
-    assert not grade.matches("tests/t.py::test_ab", "tests/t.py::test_a[")
-    exes = [{"name": "a", "tests": ["t::x"], "needs": []}, {"name": "b", "tests": ["t::y"], "needs": ["a"]}]
-    col = grade.Collector(exes)
-    col.outcome = {"t::x": "passed", "t::y": "failed", "t::z": "passed", "t::w": "failed"}
-    col.failure = {"t::y": "AssertionError: 1 != 2", "t::w": "boom"}
-    assert grade.report(col, exes)[:4] == (1, 1, 1, 1)
-    lines = capsys.readouterr().out.splitlines()
-    assert lines[0].split() == ["a", "passed"]
-    assert lines[1].split()[:3] == ["b", "FAILED", "y:"]
-    assert lines[-2:] == ["exercises: 1 passed, 1 failed", "other tests: 1 passed, 1 failed"]
+def test_self_check_finds_answer_lines_tagged_cells_and_hidden_files(tree, tmp_path):
+    dest = student.build(tmp_path / "student", root=tree, quiet=True)
+    (dest / "NOTES.md").write_text("Because the width times the height of this rectangle is six square units.\n",
+                                   encoding="utf-8")
+    (dest / "tests" / "exercises" / "test_ex_area_hidden.py").write_text("", encoding="utf-8")
+    nb_path = dest / "notebooks" / "01_demo.ipynb"
+    nb = json.loads(nb_path.read_text(encoding="utf-8"))
+    nb["cells"][2]["metadata"]["tags"] = ["check"]
+    nb_path.write_text(json.dumps(nb), encoding="utf-8")
+    problems = student.self_check(dest, tree, student.load_registry(tree))
+    assert any(p.startswith("NOTES.md:1 shows a line of an answer cell") for p in problems)
+    assert any(p.startswith("tests/exercises/test_ex_area_hidden.py") for p in problems)
+    assert any("tagged ['check']" in p for p in problems)
 
 
-def test_an_unlisted_test_stopped_by_a_stub_grades_with_that_exercise(capsys):
-    exes = [{"name": "a", "tests": ["t::x"], "needs": []}, {"name": "b", "tests": ["t::y"], "needs": []}]
-    col = grade.Collector(exes)
-    col.outcome = {"t::x": "passed", "t::y": "passed", "t::z": "failed", "t::w": "failed"}
-    col.failure = {"t::z": "ExerciseNotImplemented: exercise b is not implemented yet",
-                   "t::w": "ExerciseNotImplemented: exercise nope is not implemented yet"}
-    assert grade.report(col, exes)[:4] == (1, 1, 0, 1)       # z fails b; w names no exercise: an other test
-    out = capsys.readouterr().out
-    assert "b" + " " * 3 + "FAILED  z: ExerciseNotImplemented: exercise b" in out
-    assert grade.stub_named("AssertionError", exes) is None
+class _Report:
+    def __init__(self, text, message):
+        self.longreprtext, self.longrepr = text, type("L", (), {"reprcrash": type("C", (), {"message": message})})
 
 
-def test_exercises_only_deselects_the_other_tests():
-    class Item:
-        def __init__(self, nodeid):
-            self.nodeid = nodeid
+def test_grader_report_shows_the_check_and_the_hint(capsys):
+    exes = [{"name": "a", "targets": [], "hints": {"test_y": "look at the sign"}}, {"name": "b", "targets": []},
+            {"name": "c", "targets": []}]
+    col = grade.Collector()
+    col.outcome = {"tests/exercises/test_a.py::test_x": "passed", "tests/exercises/test_a_hidden.py::test_y": "failed",
+                   "tests/exercises/test_b.py::test_z[1]": "failed"}
+    col.failure = {"tests/exercises/test_a_hidden.py::test_y": "check: the sign\n  expected: 1\n  actual:   -1",
+                   "tests/exercises/test_b.py::test_z[1]": "not written yet: exercise b raises ExerciseNotImplemented"}
+    col.doc = {"tests/exercises/test_a_hidden.py::test_y": "The sign is kept"}
+    assert grade.report(col, exes) == []
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split()[:2] == ["a", "FAILED"] and out[1].strip() == "✗ The sign is kept (test_y)"
+    assert out[2].strip() == "check: the sign" and out[5].strip() == "hint: look at the sign"
+    assert out[-3].split() == ["b", "not", "written", "yet"]
+    assert out[-2].split()[:2] == ["c", "FAILED"] and "no test" in out[-2]
+    assert out[-1] == "exercises: 0 passed, 3 failed"
+    assert grade.exercise_of("tests/exercises/test_cw_q1b_prediction_hidden.py::t") == "cw_q1b_prediction"
 
-    class Hook:
-        def pytest_deselected(self, items):
-            self.dropped = [i.nodeid for i in items]
 
-    class Config:
-        hook = Hook()
+def test_failure_text_keeps_our_message_the_raise_site_and_the_falsifying_example():
+    ours = _Report("E   AssertionError: check: x\n  expected: 1", "AssertionError: check: x\n  expected: 1")
+    assert grade._failure_text(ours) == "check: x\n  expected: 1"
+    text = ("    def f(x):\n>       return x[3]\nE       IndexError: index 3 is out of bounds\n\n"
+            "helpers/pkg/mod.py:12: IndexError\nFalsifying example: test_f(\n    x=[0],\n)\n")
+    got = grade._failure_text(_Report(text, "IndexError: index 3 is out of bounds"))
+    assert got.splitlines()[:2] == ["IndexError: index 3 is out of bounds", "  raised at helpers/pkg/mod.py:12"]
+    assert "Falsifying example: test_f(" in got and "x=[0]," in got
+    stub = _Report("ExerciseNotImplemented: exercise l09_jcbb is not implemented yet", "E")
+    assert grade._failure_text(stub).startswith("not written yet: exercise l09_jcbb")
 
-    exes = [{"name": "a", "tests": ["t::x"], "needs": []}, {"name": "b", "tests": ["t::y"], "needs": []}]
-    for exercises_only, kept in ((False, ["t::x", "t::y[1]", "t::z"]), (True, ["t::x", "t::y[1]"])):
-        items = [Item(n) for n in ("t::x", "t::y[1]", "t::z")]
-        grade.Collector(exes, exercises_only=exercises_only).pytest_collection_modifyitems(None, Config, items)
-        assert [i.nodeid for i in items] == kept
-    assert Config.hook.dropped == ["t::z"]
+
+def test_isolate_swaps_the_code_of_the_other_exercises_targets():
+    code = ("import json, sys\nsys.path.insert(0, 'tools')\nimport grade\n"
+            "n = grade.isolate('l09_jcbb', grade.load()['exercise'])\n"
+            "from helpers.association.nearest_neighbour import nearest_neighbour\n"
+            "from helpers.exercises import ExerciseNotImplemented\n"
+            "try:\n    nearest_neighbour(None, None)\nexcept ExerciseNotImplemented as err:\n"
+            "    print(json.dumps([n, err.exercise]))\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=str(ROOT), capture_output=True, text=True, timeout=300)
+    n, name = json.loads(out.stdout.strip().splitlines()[-1])
+    assert name == "l09_euclidean_nn" and n == sum(len(ex["targets"]) for ex in grade.load()["exercise"]) - 1
 
 
 def test_notebook_handler_prints_one_short_message(capsys):
@@ -259,8 +289,8 @@ def test_the_real_registry_builds_a_clean_student_edition(real_edition):
             module, qualname = student.split_target(target)
             assert student.body_dump(student.module_path(dest, module), qualname) != \
                 student.body_dump(student.module_path(ROOT, module), qualname), target
-        for pattern in ex["tests"]:
-            assert (ROOT / pattern.split("::")[0]).exists(), pattern
+        assert (dest / "tests" / "exercises" / ("test_%s.py" % ex["name"])).exists(), ex["name"]
+        assert not (dest / "tests" / "exercises" / ("test_%s_hidden.py" % ex["name"])).exists(), ex["name"]
     assert (dest / "EXERCISES.md").exists() and (dest / "tools" / "grade.py").exists()
     assert not (dest / "tools" / "student.py").exists()
     text = (dest / "helpers" / "drivebot" / "edges.py").read_text(encoding="utf-8")

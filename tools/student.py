@@ -60,15 +60,29 @@ def load_registry(root=ROOT) -> dict:
     if len(set(names)) != len(names):
         raise BuildError("duplicate exercise names in %s" % REGISTRY)
     for ex in reg["exercise"]:
-        for key in ("targets", "tests"):
-            if not ex.get(key):
-                raise BuildError("exercise %s has no %s" % (ex["name"], key))
-        ex.setdefault("needs", [])
+        if not ex.get("targets"):
+            raise BuildError("exercise %s has no targets" % ex["name"])
+        if not (pathlib.Path(root) / "tests" / "exercises" / ("test_%s.py" % ex["name"])).exists():
+            raise BuildError("exercise %s has no tests/exercises/test_%s.py" % (ex["name"], ex["name"]))
         ex.setdefault("notebooks", [])
-        unknown = set(ex["needs"]) - set(names)
-        if unknown:
-            raise BuildError("exercise %s needs unknown exercises %s" % (ex["name"], sorted(unknown)))
+        ex.setdefault("hints", {})
     return reg
+
+
+def shipped(rel: str, remove) -> bool:
+    """Whether the answer key's file ``rel`` goes into the student edition: not a removed path, and of tests/
+    only the public exercise tests, their checks and their public fixtures (hidden tests and fixtures, and the
+    answer key's own tests, stay with the answer key)."""
+    if any(rel == r or rel.startswith(r.rstrip("/") + "/") for r in remove):
+        return False
+    if rel.startswith("tests/"):
+        return rel.startswith("tests/exercises/") and not is_hidden(rel)
+    return True
+
+
+def is_hidden(rel: str) -> bool:
+    """A hidden test (``test_*_hidden.py``) or a hidden fixture (``fixtures/*_hidden.npz``)."""
+    return pathlib.PurePosixPath(rel).stem.endswith("_hidden")
 
 
 def where(name: str) -> str:
@@ -214,7 +228,7 @@ def copy_tree(root: pathlib.Path, dest: pathlib.Path, remove) -> list:
         shutil.rmtree(dest)
     copied = []
     for rel in tracked_files(root):
-        if any(rel == r or rel.startswith(r.rstrip("/") + "/") for r in remove):
+        if not shipped(rel, remove):
             continue
         target = dest / rel
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -346,7 +360,7 @@ def kept_code_lines(root: pathlib.Path, reg: dict) -> set:
     skip = reg["edition"].get("remove", [])
     lines = set()
     for rel in tracked_files(root):
-        if not rel.endswith(".py") or any(rel == r or rel.startswith(r.rstrip("/") + "/") for r in skip):
+        if not rel.endswith(".py") or not shipped(rel, skip):
             continue
         path = root / rel
         text = path.read_text(encoding="utf-8")
@@ -387,6 +401,51 @@ def self_check(dest: pathlib.Path, root: pathlib.Path, reg: dict) -> list:
             if ex is not None:
                 problems.append("%s:%d shows a line of %s: %s"
                                 % (path.relative_to(dest).as_posix(), n, ex, ln.strip()[:80]))
+    return problems + edition_problems(dest, root)
+
+
+MIN_ANSWER_CHARS = 30
+
+
+def answer_lines(root: pathlib.Path) -> set:
+    """Distinctive lines (≥ MIN_ANSWER_CHARS, stripped) of the answer key's answer cells that no other cell of
+    its notebooks has (a heading or a phrase the teaching text also uses reveals nothing)."""
+    answers, others = set(), set()
+    for path in sorted((root / "notebooks").glob("*.ipynb")):
+        for cell in json.loads(path.read_text(encoding="utf-8")).get("cells", []):
+            tags = cell.get("metadata", {}).get("tags", [])
+            lines = {ln.strip() for ln in "".join(cell.get("source", [])).splitlines()}
+            (answers if "answer" in tags else others).update(ln for ln in lines if len(ln) >= MIN_ANSWER_CHARS)
+    return answers - others
+
+
+def edition_problems(dest: pathlib.Path, root: pathlib.Path) -> list:
+    """What must never reach the edition: hidden tests and fixtures, the answer key's own tests, notebook cells
+    tagged ``answer`` or ``check``, and any line of an answer cell (in a notebook, a Markdown or a Python file)."""
+    problems = []
+    for path in sorted(dest.rglob("*")):
+        rel = path.relative_to(dest).as_posix()
+        if any(p in SKIP_DIRS for p in path.relative_to(dest).parts) or not path.is_file():
+            continue
+        if rel.startswith("tests/") and not shipped(rel, ()):
+            problems.append("%s: a hidden test or fixture, or an answer-key test, is in the edition" % rel)
+    leaks = answer_lines(root)
+    for path in sorted(dest.rglob("*")):
+        if path.suffix not in (".ipynb", ".md", ".py") or any(p in SKIP_DIRS for p in path.relative_to(dest).parts):
+            continue
+        text = path.read_text(encoding="utf-8")
+        if path.suffix == ".ipynb":
+            nb = json.loads(text)
+            for cell in nb.get("cells", []):
+                tags = set(cell.get("metadata", {}).get("tags", [])) & {"answer", "check"}
+                if tags:
+                    problems.append("%s: cell %s tagged %s" % (path.relative_to(dest).as_posix(), cell.get("id"),
+                                                              sorted(tags)))
+            text = "\n".join(_notebook_strings(nb))
+        for n, ln in enumerate(text.splitlines(), 1):
+            if ln.strip() in leaks:
+                problems.append("%s:%d shows a line of an answer cell: %s"
+                                % (path.relative_to(dest).as_posix(), n, ln.strip()[:80]))
     return problems
 
 

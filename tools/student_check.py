@@ -1,19 +1,22 @@
-"""The CI check of the student edition (issue 16, part E); ``make test`` runs it with CI=true.
+"""The CI check of the student edition (issue 37, parts A and C); ``CI=true make test`` runs it.
 
-    python tools/student_check.py [--keep DIR]
+    python tools/student_check.py [--keep DIR] [--jobs N] [--no-notebooks]
 
-1. builds the student edition into a temporary directory (``tools/student.py``, with its self-check), and a copy
-   of it with one answer-key solution (``SOLUTION``, an exercise whose tests need no other exercise) put in;
-2. grades the student edition with the answer key's interpreter and PYTHONPATH at the student tree (no second
-   environment): expects ``exercises: 0 passed, N failed`` and ``other tests: K passed, 0 failed``;
-3. grades the copy with the solution: expects exactly that exercise to pass (and the other tests still to pass);
-4. grades the answer key's exercises (``--exercises-only``: its other tests are ``make test``'s unit tests, which
-   ``CI=true make test`` runs just before): expects ``exercises: N passed, 0 failed``.
-The three gradings run at the same time, in separate processes on independent trees.
-Prints one line per step and ``student edition check: N passed, M failed``; exit status 1 on any failure.
+1. builds the student edition into a temporary directory (``tools/student.py``: its self-check proves that no
+   solution body, no hidden test or fixture, no answer cell and no check cell reaches it);
+2. grades the untouched edition (every exercise must fail: ``exercises: 0 passed``) and, for EVERY exercise, a
+   copy of the edition with only that exercise's answer-key solution put in: exactly that exercise must pass
+   (its checks call nothing else, so it stands alone);
+3. grades the answer key (public and hidden tests): every exercise passes;
+4. runs every notebook (nbval in lax mode: every cell runs without error) in a copy of the edition with only the
+   exercises that notebook uses solved (``notebooks`` in tools/exercises.toml): a notebook needs nothing else.
+Graders and notebook runs go on ``--jobs`` workers (default 2), each in its own process and tree, with this
+interpreter and PYTHONPATH at the tree (no second environment). Prints one line per step and
+``student edition check: N passed, M failed``; exit status 1 on any failure.
 """
 from __future__ import annotations
 
+import concurrent.futures
 import os
 import pathlib
 import re
@@ -27,32 +30,70 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import student  # noqa: E402
 
 ROOT = student.ROOT
-SOLUTION = "lab8_2a_individual_compatibility"
-SUMMARY = re.compile(r"^(exercises|other tests): (\d+) passed, (\d+) failed$", re.M)
+SUMMARY = re.compile(r"^exercises: (\d+) passed, (\d+) failed$", re.M)
+PASSED = re.compile(r"^(\w+)\s+passed\s", re.M)
 
 
-def start_grading(tree: pathlib.Path, log: pathlib.Path, *args):
-    """Start tree's grader with this interpreter, its output going to the file ``log`` (a file, not a pipe:
-    graders run side by side and none may block on a full pipe). ``finish_grading`` collects it."""
-    env = dict(os.environ, PYTHONPATH=str(tree), PYTHONIOENCODING="utf-8")     # the log is read as UTF-8
-    with open(log, "w", encoding="utf-8") as out:
-        process = subprocess.Popen([sys.executable, str(tree / "tools" / "grade.py")] + list(args), cwd=str(tree),
-                                   env=env, stdout=out, stderr=subprocess.STDOUT)
-    process.log = log
-    return process
+def run(tree: pathlib.Path, args: list, timeout: float = 900) -> tuple[int, str]:
+    """Run ``python args`` in ``tree`` with PYTHONPATH at it; (exit status, output)."""
+    env = dict(os.environ, PYTHONPATH=str(tree), PYTHONIOENCODING="utf-8", MPLBACKEND="Agg")
+    try:
+        out = subprocess.run([sys.executable] + args, cwd=str(tree), env=env, capture_output=True, text=True,
+                             encoding="utf-8", errors="replace", timeout=timeout)
+        return out.returncode, out.stdout + out.stderr
+    except subprocess.TimeoutExpired as err:
+        return -1, "timed out after %.0f s\n%s" % (timeout, err.stdout or "")
 
 
-def finish_grading(process: subprocess.Popen):
-    """Wait for a grader; returns (its output, {"exercises": (p, f), "other tests": (p, f)})."""
-    process.wait()
-    output = process.log.read_text(encoding="utf-8", errors="replace")
-    counts = {m.group(1): (int(m.group(2)), int(m.group(3))) for m in SUMMARY.finditer(output)}
-    return output, counts
+def solved_copy(edition: pathlib.Path, dest: pathlib.Path, names) -> pathlib.Path:
+    shutil.copytree(edition, dest, ignore=shutil.ignore_patterns("__pycache__", ".pytest_cache", "figures"))
+    for name in names:
+        student.copy_solution(dest, name)
+    return dest
+
+
+def grade_job(edition, tmp, name):
+    """Grade a copy of the edition with the solution of ``name`` (None: untouched); (label, ok, output)."""
+    tree = edition if name is None else solved_copy(edition, tmp / ("solved-" + name), [name])
+    code, out = run(tree, ["tools/grade.py"])
+    passed = PASSED.findall(out)
+    expected = [] if name is None else [name]
+    label = ("the untouched edition: no exercise passes" if name is None
+             else "the edition with only %s solved: exactly it passes" % name)
+    ok = passed == expected and SUMMARY.search(out) is not None
+    if name is not None:
+        shutil.rmtree(tree, ignore_errors=True)
+    return label + ("" if ok else " (passed: %s)" % (passed or "none")), ok, out
+
+
+def notebook_job(edition, tmp, names, notebooks):
+    """Run ``notebooks`` (nbval, lax) in a copy of the edition with exactly ``names`` solved."""
+    tree = solved_copy(edition, tmp / ("nb-" + "-".join(notebooks[0:1])), sorted(names))
+    code, out = run(tree, ["-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "no:randomly", "-o", "addopts=",
+                           "--nbval-lax", "--nbval-current-env", "--nbval-cell-timeout", "300"]
+                    + ["notebooks/%s.ipynb" % n for n in notebooks], timeout=1800)
+    shutil.rmtree(tree, ignore_errors=True)
+    label = "notebooks %s run with only %s solved" % (", ".join(n[:2] for n in notebooks),
+                                                      ", ".join(sorted(names)) or "no exercise")
+    return label, code == 0, out
+
+
+def notebook_sets(reg: dict, edition: pathlib.Path) -> dict:
+    """{frozenset of exercises: [notebook stems]} for every notebook of the edition."""
+    uses = {}
+    for ex in reg["exercise"]:
+        for stem in ex["notebooks"]:
+            uses.setdefault(stem, set()).add(ex["name"])
+    sets = {}
+    for path in sorted((edition / "notebooks").glob("*.ipynb")):
+        sets.setdefault(frozenset(uses.get(path.stem, ())), []).append(path.stem)
+    return sets
 
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     keep = pathlib.Path(argv[argv.index("--keep") + 1]) if "--keep" in argv else None
+    jobs = int(argv[argv.index("--jobs") + 1]) if "--jobs" in argv else 2
     start = time.perf_counter()
     results = []
 
@@ -62,37 +103,28 @@ def main(argv=None) -> int:
         if not ok and output:
             print(output[-4000:], flush=True)
 
-    n = len(student.load_registry()["exercise"])
+    reg = student.load_registry()
+    names = [ex["name"] for ex in reg["exercise"]]
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="student-edition-"))
-    tree = keep or tmp / "student"
-    graders = []
+    edition = keep or tmp / "student"
     try:
-        student.build(tree, quiet=True)
-        check("the student edition builds and passes its self-check (%d exercises)" % n, True)
-        solved = tmp / "student-with-solution"
-        shutil.copytree(tree, solved, ignore=shutil.ignore_patterns("__pycache__", ".pytest_cache"))
-        student.copy_solution(solved, SOLUTION)
-        graders = [start_grading(tree, tmp / "student.log"), start_grading(solved, tmp / "solved.log"),
-                   start_grading(ROOT, tmp / "answer-key.log", "--exercises-only")]
-        out, counts = finish_grading(graders[0])
-        check("student edition: exercises: %s passed, %s failed (expected 0, %d); other tests: %s passed, %s failed"
-              % (counts.get("exercises", ("?", "?")) + (n,) + counts.get("other tests", ("?", "?"))),
-              counts.get("exercises") == (0, n) and counts.get("other tests", (0, 1))[1] == 0
-              and counts["other tests"][0] > 0, out)
-        out, counts = finish_grading(graders[1])
-        passed = re.findall(r"^(\w+)\s+passed$", out, re.M)
-        check("student edition with the answer key's %s: exactly that exercise passes" % SOLUTION,
-              passed == [SOLUTION] and counts.get("exercises") == (1, n - 1)
-              and counts.get("other tests", (0, 1))[1] == 0, out)
-        out, counts = finish_grading(graders[2])
-        check("answer key: exercises: %d passed, 0 failed" % n, counts.get("exercises") == (n, 0), out)
+        student.build(edition, quiet=True)
+        check("the student edition builds and passes its self-check (%d exercises)" % len(names), True)
+        with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
+            futures = [pool.submit(run, ROOT, ["tools/grade.py"])]
+            futures += [pool.submit(grade_job, edition, tmp, n) for n in [None] + names]
+            if "--no-notebooks" not in argv:
+                sets = notebook_sets(reg, edition)
+                futures += [pool.submit(notebook_job, edition, tmp, s, nbs) for s, nbs in
+                            sorted(sets.items(), key=lambda kv: -len(kv[1]))]
+            code, out = futures[0].result()
+            check("the answer key: every exercise passes its public and hidden tests",
+                  code == 0 and PASSED.findall(out) == names, out)
+            for future in futures[1:]:
+                check(*future.result())
     except student.BuildError as err:
         check("the student edition builds: %s" % err, False)
     finally:
-        for process in graders:                                      # interrupted: no grader left behind
-            if process.poll() is None:
-                process.kill()
-                process.wait()
         if keep is None:
             shutil.rmtree(tmp, ignore_errors=True)
     print("student edition check took %.0f s" % (time.perf_counter() - start))

@@ -30,20 +30,17 @@ def _notebook_exercises(reg: dict) -> dict:
 
 def exercises_markdown(reg: dict) -> str:
     lines = ["# Exercises", "",
-             "This is the student edition of the SLAM course workbook. Each exercise below is a function (or a "
-             "few) whose body you write; until you do, it raises `ExerciseNotImplemented` naming the exercise. "
-             "Work on one exercise at a time:", "",
-             "1. read its task here (the course document's part is named, so you can read the full text there);",
-             "2. write the body of the function(s) listed under *Where*: keep the signature, read the docstring;",
-             "3. grade it: `make grade EX=<name>` (Windows: `py -3.12 tools\\workbook.py grade <name>`); the line "
-             "of the exercise says `passed`, or the first check that failed;",
-             "4. run the notebooks listed under *Notebooks*: they now run your code.", "",
-             "`make grade` alone grades every exercise and ends with `exercises: N passed, M failed` and "
-             "`other tests: K passed, L failed` (the rest of the workbook's tests; they pass from the start). "
-             "Where an exercise's tests also call other exercises, those are listed under *Needs*: do them first.",
-             "", "Where the answer key has a fast version of an exercise (vectorised, compiled or batched), this "
-             "edition calls your function in its place, so every notebook and every other function that uses it "
-             "runs your code: `tools/exercises.toml` lists these under `[[edition.rewrite]]`, each with the reason.",
+             "Each exercise below is a function (or a few) whose body you write; until you do, it raises "
+             "`ExerciseNotImplemented` naming the exercise. Every exercise stands alone: its checks call only your "
+             "function, so you can do them in any order (a notebook needs the exercises it teaches and those of "
+             "the earlier notebooks of its part). For each one:", "",
+             "1. read its task here (the course document's part is named: read the full text there);",
+             "2. write the body of the function(s) under *Where*: keep the signature, read the docstring;",
+             "3. check it: `make grade EX=<name>` (Windows: `py tools\\workbook.py grade <name>`), a few "
+             "seconds: it says `passed`, or shows each failed check with the input, the expected and the actual "
+             "value and a hint;",
+             "4. run the notebooks under *Notebooks*: they now run your code.", "",
+             "`make grade` checks every exercise and ends with `exercises: N passed, M failed`.",
              "", "| exercise | course document, part |", "|---|---|"]
     for ex in reg["exercise"]:
         lines.append("| [`%s`](#%s) | %s |" % (ex["name"], ex["name"], ex["source"]))
@@ -51,49 +48,59 @@ def exercises_markdown(reg: dict) -> str:
         lines += ["", "## %s" % ex["name"], "", "**%s.**" % ex["source"], "",
                   " ".join(ex["task"].split()), "",
                   "*Where:* " + "; ".join(_target_text(t) for t in ex["targets"]) + ".", "",
-                  "*Tests* (`make grade EX=%s`): " % ex["name"]
-                  + ", ".join("`%s`" % t for t in ex["tests"]) + "."]
-        if ex["needs"]:
-            lines += ["", "*Needs:* " + ", ".join("`%s`" % n for n in ex["needs"]) + "."]
+                  "*Check it:* `make grade EX=%s` runs `tests/exercises/test_%s.py` (it calls only this "
+                  "exercise; the instructor's grader adds hidden value checks)." % (ex["name"], ex["name"])]
         lines += ["", "*Notebooks:* " + (", ".join("`notebooks/%s.ipynb`" % n for n in ex["notebooks"])
                                           if ex["notebooks"] else "none (graded by its tests only)") + "."]
     return "\n".join(lines) + "\n"
 
 
-def student_readme(original: str, reg: dict) -> str:
-    body = original.split("\n", 1)[1] if original.startswith("# ") else original
-    start = body.find("\n## Benchmarks")
-    if start >= 0:                                    # benchmarks/ is not part of the student edition
-        end = body.find("\n## ", start + 1)
-        body = body[:start] + (body[end:] if end >= 0 else "\n")
-    preface = [
-        "# SLAM course workbook — student edition", "",
-        "This tree is the workbook with **%d exercises** left for you: their functions raise "
-        "`ExerciseNotImplemented` until you write them. **Start with `EXERCISES.md`**: it gives each task, the "
-        "file and function to write, the tests that grade it and the notebooks that use it." % len(reg["exercise"]),
-        "", "How to work:", "",
-        "1. `make setup` (or any task below) creates `.venv` exactly as in the answer key;",
-        "2. read an exercise in `EXERCISES.md` and write its function body;",
-        "3. `make grade EX=<name>` grades that exercise (`make grade` grades all of them; Windows: "
-        "`py -3.12 tools\\workbook.py grade [name]`);",
-        "4. run the notebooks that use it (`make lab`): a cell that needs an exercise you have not written stops "
-        "with a one-line message naming it; once it is written, the notebooks run on your code.", "",
-        "In this edition `make test` runs the grader (it fails only if a test outside the exercises fails) and then "
-        "nbval in lax mode over the notebooks whose exercises all pass. The notebooks ship without stored outputs, "
-        "except the few that show what a correct result looks like (Lab 8's console output and Figure 1) and the "
-        "notebooks that use no exercise.", ""]
-    return "\n".join(preface) + body
+def student_readme(template: str, reg: dict) -> str:
+    """The student README: tools/student_readme.md (for students: set-up, how to work, grade, answer) with the
+    number of exercises filled in. The answer key's README (maintainers: CI, nbval, benchmarks) is not copied."""
+    return template.replace("{n}", str(len(reg["exercise"])))
+
+
+ANSWER_PROMPT = "*Your answer:* (write it here; `make submission` collects this cell)"
+
+
+def question_cells(cell: dict) -> list:
+    """An answer cell of the answer key (tag ``answer``, metadata ``question``) becomes the course's question and
+    an empty cell for the student's answer (tag ``student-answer``; it keeps the answer cell's id, so a grader can
+    find the student's answer)."""
+    meta = cell.get("metadata", {})
+    question = meta.get("question")
+    if not question:
+        raise ValueError("answer cell %s has no 'question' in its metadata" % cell.get("id"))
+    ask = {"cell_type": "markdown", "id": "%s-question" % cell.get("id"), "metadata": {},
+           "source": lines_of("**Question.** " + " ".join(question.split()))}
+    answer = {"cell_type": cell["cell_type"], "id": cell.get("id"),
+              "metadata": {"tags": ["student-answer"], "question": question}, "source": []}
+    if cell["cell_type"] == "code":
+        answer.update(outputs=[], execution_count=None, source=lines_of("# your answer (code)\n"))
+    else:
+        answer["source"] = lines_of(ANSWER_PROMPT)
+    return [ask, answer]
 
 
 def student_notebook(nb: dict, exercises, keep) -> dict:
-    """Strip outputs (except ``keep``: a set of cell ids, or {"*"}), add the exercise cell and the import."""
+    """Drop the ``check`` cells, turn each ``answer`` cell into its question and an empty answer cell, strip
+    outputs (except ``keep``: a set of cell ids, or {"*"}), add the exercise cell and the import."""
+    cells = []
     for cell in nb["cells"]:
+        tags = cell.get("metadata", {}).get("tags", [])
+        if "check" in tags:
+            continue
+        if "answer" in tags:
+            cells += question_cells(cell)
+            continue
+        cells.append(cell)
         if cell.get("cell_type") != "code":
             continue
-        tags = cell.get("metadata", {}).get("tags", [])
         if "*" not in keep and cell.get("id") not in keep and "keep-output" not in tags:
             cell["outputs"] = []
             cell["execution_count"] = None
+    nb["cells"] = cells
     first_code = next((c for c in nb["cells"] if c.get("cell_type") == "code"), None)
     if first_code is not None:
         src = "".join(first_code.get("source", []))
@@ -119,9 +126,8 @@ def lines_of(text: str):
 
 def write_docs(root: pathlib.Path, dest: pathlib.Path, reg: dict) -> None:
     (dest / "EXERCISES.md").write_text(exercises_markdown(reg), encoding="utf-8")
-    readme = pathlib.Path(root) / "README.md"
-    if readme.exists():
-        (dest / "README.md").write_text(student_readme(readme.read_text(encoding="utf-8"), reg), encoding="utf-8")
+    template = pathlib.Path(root) / "tools" / "student_readme.md"
+    (dest / "README.md").write_text(student_readme(template.read_text(encoding="utf-8"), reg), encoding="utf-8")
     keep = {}
     for entry in reg["edition"].get("keep_outputs", []):
         keep.setdefault(pathlib.PurePosixPath(entry["notebook"]).stem, set()).update(entry["cells"])
