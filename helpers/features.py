@@ -106,27 +106,35 @@ def corner_response(image: np.ndarray, method: str = "shi-tomasi", block_size: i
 def detect_features(image: np.ndarray, max_features: int = 10000, method: str = "shi-tomasi", threshold: float = 0.01,
                     block_size: int = 5, aperture_size: int = 3, harris_k: float = 0.04,
                     nms_radius: int = 0, smoothing: float = 0.0, border: int = 4) -> Features:
-    """Detect corner features: pixels with response R > threshold · max(R), strongest first.
+    """Detect corner features (Lab 8 task 3a): pixels with a strong corner response R, strongest first.
 
     Parameters
     ----------
     image : (H, W) uint8/float gray or (H, W, 3) uint8 BGR image.
-    max_features : keep at most this many features (the strongest ones); ≥ 1.
+    max_features : keep at most this many features (the strongest ones); an integer ≥ 1.
     method : ``"shi-tomasi"`` (minimum eigenvalue) or ``"harris"``.
-    threshold : relative quality level in [0, 1): a pixel qualifies when R > threshold · max(R)
-        (and R > 0). 0 keeps every pixel with positive response.
-    block_size, aperture_size, harris_k : passed to OpenCV (window size, Sobel size, Harris k).
-    nms_radius : 0 for none (the lab); r > 0 keeps only pixels that are the maximum of their
-        (2r + 1) × (2r + 1) neighbourhood (ties on a plateau all survive).
-    smoothing : σ (px) of a Gaussian applied to the response map before selection (0 = none, the lab).
-        The box-window response of a corner is a plateau about block_size wide; smoothing turns it into a
-        peak at the plateau's centre, so non-maximum suppression keeps the pixel nearest the corner.
-    border : ignore this many pixels along the image border (the response there is unreliable).
+    threshold : relative quality level in [0, 1): a pixel qualifies when R > threshold · max(R) and R > 0,
+        max(R) taken over the pixels at least ``border`` from the image edge. 0 keeps every positive response.
+    block_size, aperture_size, harris_k : the corner response's window size, Sobel size and Harris k
+        (``corner_response(image, method, block_size, aperture_size, harris_k)`` computes R and checks them).
+    nms_radius : 0 for none (the lab); r > 0 keeps only pixels whose R is the maximum of R over their
+        (2r + 1) × (2r + 1) neighbourhood in the image (clipped at the edge; equal neighbours all stay).
+    smoothing : σ (px) of a Gaussian blur of R before anything else, ``cv2.GaussianBlur(R, (0, 0), smoothing)``
+        (0 = none, the lab). The box-window response of a corner is a plateau about block_size wide; smoothing
+        turns it into a peak, so non-maximum suppression keeps one pixel per corner.
+    border : ignore the pixels fewer than ``border`` from the image edge (the response there is unreliable).
 
     Returns
     -------
-    Features with ``score``, ``x``, ``y`` (int) sorted by descending score (ties in raster order).
+    Features with ``score`` (R at the pixel, after smoothing), ``x``, ``y`` (integer pixel coordinates: x to the
+    right, y down) sorted by descending score, ties in raster order (y, then x), at most ``max_features``.
     An image without corners (e.g. constant) gives an empty ``Features`` (m = 0), not an error.
+
+    Raises
+    ------
+    ValueError naming ``max_features``, ``threshold``, ``nms_radius``, ``smoothing`` (negative) or ``border``
+    (leaving no pixel), and, through corner_response, ``image``, ``method``, ``block_size``, ``aperture_size``
+    or ``harris_k``.
     """
     max_features = integer(max_features, "max_features", minimum=1)
     if not 0.0 <= finite_number(threshold, "threshold") < 1.0:

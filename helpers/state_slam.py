@@ -100,10 +100,27 @@ class StateSLAM:
 
     def predict_feature_bundle(self, camera: Camera, idx_landmarks: ArrayLike, x: ArrayLike | None = None) \
             -> tuple[np.ndarray, np.ndarray]:
-        """(h, J) of eqs (8)–(9) at the state x (default: the mean): h (2k,), J (2k, n).
+        """The predicted feature bundle h(x) (Lab 8 eq 8) and its Jacobian J = ∂h/∂x (eq 9) at the state x.
 
-        Row pair (2i, 2i+1) is the pixel of landmark idx_landmarks[i]; J is non-zero only in the body-pose
-        columns 6..11 and that landmark's three columns.
+        Parameters
+        ----------
+        camera : helpers.camera.Camera; ``camera.body_to_pixel(r_j, eta_body, return_jacobian=True)`` gives the
+            pixel h_j(x) = v2p(Rncᵀ (r_j − rCNn)) of eq 4 (camera pose from the body pose, eq 5) and its
+            Jacobians with respect to r_j, rBNn and Θnb.
+        idx_landmarks : the k ≥ 1 selected landmarks [j_0, j_1, …], distinct integers in [0, n_L).
+        x : the state (n,) at which h and J are evaluated; None (default) for the mean of the state density.
+
+        Returns
+        -------
+        h : (2k,) [h_{j_0}; h_{j_1}; …]: rows 2i, 2i+1 are the pixel (x, y) of landmark idx_landmarks[i].
+        J : (2k, n) [∂h_{j_0}/∂x; ∂h_{j_1}/∂x; …] (eq 6 per block row): each block row is zero except in the
+            body-pose columns 6..11 and its landmark's columns 12 + 3j .. 14 + 3j.
+
+        Raises
+        ------
+        ValueError naming ``idx_landmarks`` (empty, not integers, out of range or repeated), ``x`` (not a finite
+        (n,) vector) or ``camera`` (not a Camera); the camera's ProjectionError (a ValueError) when a selected
+        landmark has no pixel at x (behind the camera or beyond the lens fold).
         """
         _check_camera(camera)
         idx = self._landmark_selection(idx_landmarks)

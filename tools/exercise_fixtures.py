@@ -40,6 +40,7 @@ def load_recipes() -> dict:
     """Import every recipe module (each registers its recipes); returns the registry."""
     sys.path.insert(0, str(ROOT))
     sys.path.insert(0, str(ROOT / "tools"))
+    sys.modules.setdefault("exercise_fixtures", sys.modules[__name__])   # run as a script: one registry
     for module in RECIPE_MODULES:
         if (ROOT / "tools" / ("%s.py" % module)).exists():
             importlib.import_module(module)

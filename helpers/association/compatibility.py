@@ -43,7 +43,26 @@ def check_bundle_density(density: Gaussian, allow_empty: bool = True) -> int:
 
 
 def individual_compatibility(i: int, j: int, Y: ArrayLike, density: Gaussian, n_sigma: float = 3.0) -> bool:
-    """Whether feature i (column of Y) is individually compatible with selected landmark j (eq 12)."""
+    """Whether feature i is individually compatible with landmark j (Lab 8 eqs 11–13).
+
+    Parameters
+    ----------
+    i : a feature, a column of Y (integer in [0, m)).
+    j : a landmark of the bundle (integer in [0, n)); its predicted feature is rows 2j, 2j+1 of ``density``.
+    Y : (2, m) measured features, column i = (x, y) of feature i in pixels (eq 18), m ≥ 1.
+    density : the predicted feature-bundle density N(μ, SᵀS), a ``Gaussian`` of size 2n.
+    n_sigma : the confidence level c = 2Φ(n_sigma) − 1 of the gate (n_sigma > 0; default 3).
+
+    Returns
+    -------
+    bool (a Python bool): w_ijᵀ w_ij ≤ χ²_2(c), where S_jᵀ w_ij = y_i − μ_j and N(μ_j, S_jᵀ S_j) is the marginal
+    of landmark j's two rows of the bundle density.
+
+    Raises
+    ------
+    ValueError naming ``i`` or ``j`` (not an integer, or out of range), ``Y`` (not (2, m) with m ≥ 1, or not
+    finite), ``density`` (not a Gaussian of even size) or ``n_sigma`` (not positive and finite).
+    """
     n = check_bundle_density(density)
     Y = feature_columns(Y, allow_empty=False)
     i = integer(i, "i", minimum=0, below=Y.shape[1])
@@ -61,9 +80,30 @@ def uniform_surprisal(image_size: ArrayLike) -> float:
 
 def joint_compatibility(idx: ArrayLike, sU: float, Y: ArrayLike, density: Gaussian,
                         n_sigma: float = 3.0) -> tuple[bool, float]:
-    """``(compatible, surprisal)`` of the association ``idx`` (Lab 8 eqs 14–17): one entry per selected landmark,
-    a feature column of Y or −1, no feature used twice; surprisal = n_U·sU − log N(y_A; μ_A, P_A), and
-    ``(True, n·sU)`` when nothing is associated."""
+    """Joint compatibility of the association ``idx`` and its total surprisal (Lab 8 eqs 14–17 and §2's surprisal).
+
+    Parameters
+    ----------
+    idx : one entry per landmark of the bundle (length n): the feature (a column of Y) associated with
+        landmark k, or −1 when landmark k is unassociated; no feature may appear twice.
+    sU : the surprisal s_U = log |𝒴| of one unassociated landmark (finite).
+    Y : (2, m) measured features, column i = (x, y) of feature i in pixels (m = 0 allowed).
+    density : the predicted feature-bundle density N(μ, SᵀS), a ``Gaussian`` of size 2n; landmark k is rows
+        2k, 2k+1.
+    n_sigma : the confidence level c = 2Φ(n_sigma) − 1 of the gate (n_sigma > 0; default 3).
+
+    Returns
+    -------
+    (compatible, surprisal) as (bool, float): with A the associated landmarks, y_A their features stacked in
+    landmark order and N(μ_A, P_A) the marginal of their rows, ``compatible`` is w_Aᵀ w_A ≤ χ²_{2|A|}(c) with
+    S_Aᵀ w_A = y_A − μ_A (eqs 16–17) and ``surprisal`` = n_U·sU − log N(y_A; μ_A, P_A), n_U = n − |A|. With
+    nothing associated: (True, n·sU).
+
+    Raises
+    ------
+    ValueError naming ``idx`` (not n integers, an entry below −1 or ≥ m, or a feature used twice), ``sU`` (not
+    finite), ``Y``, ``density`` or ``n_sigma`` (as in individual_compatibility).
+    """
     n = check_bundle_density(density)
     Y = feature_columns(Y)
     idx_arr = check_hypothesis(idx, n, Y.shape[1], "idx", what="feature")

@@ -68,6 +68,19 @@ def test_the_gate_follows_the_covariance_not_the_distance():
                  given={"Y": along_y, "P": np.diag([25.0, 1.0])})
 
 
+def test_uses_the_marginal_of_a_correlated_bundle():
+    """Landmark j's 2 × 2 covariance is the marginal P_jj of the whole bundle, also when the landmarks are
+    correlated (not a block of the square root S)"""
+    # landmark 0 and 1 share a common offset (the pose): P = diag(1) + 24 [I I; I I]
+    cov = np.eye(4) + 24.0 * np.kron(np.ones((2, 2)), np.eye(2))
+    density = bundle([0.0, 0.0, 50.0, 50.0], cov)
+    # P_11 = 25 I (σ = 5 px): 12 px off is within the 3σ gate (d² = 5.76); with the lower-right block of the
+    # upper-triangular square root S, S_11ᵀ S_11 = P_11 − P_10 P_00⁻¹ P_01 ≈ 1.96 I, it would look 73 outside
+    Y = np.array([[62.0], [50.0]])
+    expect_equal(individual_compatibility(0, 1, Y, density), True, "feature 0, 12 px from landmark 1's "
+                 "prediction, landmark 1's marginal σ = 5 px", given={"Y": Y, "mu": density.mean, "P": cov})
+
+
 def test_returns_a_plain_bool():
     """The result is a Python bool (not a numpy array or a number)"""
     density = bundle([0.0, 0.0], np.eye(2))
