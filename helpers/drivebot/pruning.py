@@ -173,6 +173,16 @@ class KeyframePruning(PruningHook):
         self.rate_threshold, self.window = _keyframe_parameters(rate_threshold, window)
 
     def select(self, table: dict) -> np.ndarray:
+        """Q3b: the keep mask of the keyframe rule over the landmark edges of ``table`` (``landmark_edge_table``).
+
+        ``table``: "vehicle_ids" (N,), "headings" (N,) and "dt" (N − 1,) of the vehicle vertices in the graph (ids
+        may have gaps where vertices were deleted); per landmark edge (E,): "vertex_pos", its vehicle vertex as
+        an index into those arrays, "vertex" and "landmark" ids; "edges" (not needed here). With this object's
+        ``stride``, ``rate_threshold`` and ``window``: a vertex is on a straight segment when its smoothed turn
+        rate is below ``rate_threshold`` (``straight_segment_mask``), it is a keyframe when its vehicle id is a
+        multiple of ``stride`` (``stride_mask``), and an edge is kept when its vertex is a keyframe or is not on
+        a straight segment. Returns a bool array (E,); ``PruningHook.__call__`` removes the other edges.
+        """
         # Q3b: classify every vehicle vertex from its *current* heading estimates: straight when the turn rate
         # |Δψ|/ΔT, averaged over `window` ticks, is below `rate_threshold` (rad/s). Recomputed at every call, so
         # vertices added since the last optimisation are classified with the freshly optimised headings.
