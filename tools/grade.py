@@ -91,8 +91,9 @@ def _failure_text(report) -> str:
     if message.startswith("AssertionError: check:"):
         body = message[len("AssertionError: "):]
     else:                                                    # the student's code raised: where, and what
-        where = [ln.strip() for ln in text.splitlines() if re.match(r"^\s*(helpers|tests)[/\\].*:\d+: ", ln)]
-        body = message + ("\n  raised at %s" % where[-1].rsplit(":", 1)[0] if where else "")
+        where = [ln.strip().rsplit(":", 1)[0] for ln in text.splitlines()
+                 if re.match(r"^\s*(helpers|tests)[/\\].*:\d+: ", ln)]
+        body = message + ("\n  raised at %s" % " <- called from ".join(where[::-1][:3]) if where else "")
     example = re.search(r"^Falsifying example:.*?(?=^\S|\Z)", text, re.M | re.S)
     if example:
         body += "\n  " + example.group(0).strip().replace("\n", "\n  ")

@@ -5,18 +5,19 @@ the fixed compass and the landmark edges are the graph package's ``EdgePositionP
 ``VehicleVertex``  — ``VertexSE2`` (x ⊞ δ = x + δ, then ψ wrapped) that also stores its ``time``.
 ``LandmarkVertex`` — ``VertexPointXY`` (additive) that also stores its 1-based ``landmark_id``.
 
-``VehicleKinematicsEdge`` — binary, z = u = [s, 0, ψ̇] (the previous odometry), parameter ``dt``:
+``VehicleKinematicsEdge`` — binary (x_k, x_{k+1}), measurement z = u_k = [s, 0, ψ̇] (the odometry stored before
+the tick), parameter ``dt`` = ΔT_k, information R_odometry⁻¹. Its model is the coursework's process model
+(handout, appendix A.2):
 
-    x_{k+1} = x_k + ΔT M(ψ_k)(u + v)      ⇒      e = v = Mᵀ(ψ_k) Δ / ΔT − u,
-    Δ = [x_{k+1} − x_k, y_{k+1} − y_k, wrap(ψ_{k+1} − ψ_k)],  c = cos ψ_k, s = sin ψ_k,
-    J_k     = (1/ΔT) [[−c, −s, −Δx s + Δy c], [s, −c, −Δx c − Δy s], [0, 0, −1]],
-    J_{k+1} = Mᵀ(ψ_k) / ΔT = (1/ΔT) [[c, s, 0], [−s, c, 0], [0, 0, 1]].
-    ``evaluate`` is these equations in numpy, for all edges of the class at once; ``initialize()`` sets
-    x_{k+1} = x_k ⊞ ΔT M(ψ_k) z (forward prediction, ψ wrapped) — see ``predict``.
+    x_{k+1} = x_k + ΔT_k M(ψ_k) (u_k + v_k),    M(ψ) = [[cos ψ, −sin ψ, 0], [sin ψ, cos ψ, 0], [0, 0, 1]].
 
-``BuggyCompassEdge`` — the coursework's provided compass edge: e = ψ + Δψ_C − z with **no wrap**,
-J = [0, 0, 1]. Once ψ + Δψ_C leaves [−π, π) while the simulator's z is wrapped, every residual is off by
-2π. The fix is ``EdgeHeadingPrior``, which wraps e (J unchanged).
+The information is the inverse covariance of the process noise v_k, so the edge's error is v_k: the noise that
+makes the model hold for the two poses (the graph's convention e = h(x) − z, with z = u_k). Headings ψ and
+ψ + 2π are the same heading. ``evaluate`` computes e and its Jacobians for all edges of the class at once;
+``initialize()`` sets x_{k+1} = x_k ⊞ ΔT M(ψ_k) z (forward prediction, ψ wrapped) — see ``predict``.
+
+``BuggyCompassEdge`` — the compass edge the coursework provides for appendix A.3's model z = ψ + Δψ_C + w; it
+has the bug that coursework Q1c asks you to find. ``EdgeHeadingPrior`` is the corrected edge.
 """
 from __future__ import annotations
 
@@ -64,8 +65,15 @@ class VehicleKinematicsEdge(BaseEdge):
 
     @staticmethod
     def evaluate(states: list[np.ndarray], z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
-        # Q1b: the process-model edge, e = Mᵀ(ψ_k) Δ / ΔT − u, and its analytic Jacobians J_k, J_{k+1}
-        # (module docstring), for every edge of the class at once.
+        """Errors and Jacobians of E kinematics edges at once (the model and what e is: module docstring).
+
+        states = [x_k, x_{k+1}], each (E, 3) poses [x, y, ψ]; z (E, 3), each edge's odometry u_k; params
+        {"dt": (E,)}, each edge's ΔT_k > 0. Returns (e, [J_k, J_{k+1}]): e (E, 3); J_k = ∂e/∂x_k and
+        J_{k+1} = ∂e/∂x_{k+1}, (E, 3, 3) each, for the vertices' update x ⊞ δ. With jacobians False: (e, None).
+        """
+        # Q1b: the process-model edge, e = v = Mᵀ(ψ_k) Δ / ΔT − u with Δ = [x_{k+1} − x_k, y_{k+1} − y_k,
+        # wrap(ψ_{k+1} − ψ_k)], and its analytic Jacobians (c = cos ψ_k, s = sin ψ_k), for all edges at once:
+        #   J_k = (1/ΔT) [[−c, −s, −Δx s + Δy c], [s, −c, −Δx c − Δy s], [0, 0, −1]],  J_{k+1} = Mᵀ(ψ_k) / ΔT.
         xk, xn = states
         inv_dt = 1.0 / params["dt"]
         c, s = np.cos(xk[:, 2]), np.sin(xk[:, 2])
@@ -89,8 +97,7 @@ class VehicleKinematicsEdge(BaseEdge):
 
 
 class BuggyCompassEdge(EdgeHeadingPrior):
-    """The coursework's provided (buggy) compass edge: e = ψ + offset − z, NOT wrapped; J = [0, 0, 1]
-    (module docstring)."""
+    """The compass edge the coursework provides (appendix A.3), with the bug of coursework Q1c (module docstring)."""
 
     @staticmethod
     def evaluate(states: list[np.ndarray], z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:

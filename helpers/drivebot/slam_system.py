@@ -40,7 +40,7 @@ class SLAMOptions:
     changed option is a new object, e.g. ``dataclasses.replace(options, optimization_period=5)``."""
 
     optimization_period: int | None = None    # optimise every this many steps; None or inf: only at the end
-    compass_edge: str = "fixed"               # "fixed" (wrapped error) or "buggy" (the coursework's unwrapped edge)
+    compass_edge: str = "fixed"               # "fixed" (EdgeHeadingPrior) or "buggy" (the edge the coursework provides)
     remove_prediction_edges: bool = False     # Q3a: remove the kinematics edges before every optimisation …
     keep_first_prediction_edge: bool = False  # … all but the first
     pre_optimization_hook: Callable[[DriveBotSLAMSystem], object] | None = None   # e.g. a Q3b pruning heuristic
@@ -162,6 +162,13 @@ class DriveBotSLAMSystem:
         self._built = False
 
     def _predict_to_time(self, time, dt):
+        """Q1b: the prediction step from the current vehicle vertex over ``dt`` = ΔT_k seconds to ``time`` (one call
+        per tick: module docstring). Adds one VehicleVertex at ``time`` (id = its index in ``vehicle_vertices``),
+        initialised by the process model with the stored odometry ``self._u``, and one VehicleKinematicsEdge from
+        the current vertex to it (measurement ``self._u``, information ``self._u_info``, parameter ``dt``); appends
+        them to ``vehicle_vertices`` and ``process_model_edges``, makes the new vertex ``current_vehicle_vertex``
+        and sets ``self._built = False`` (the graph changed). A current vertex that has left the graph (Q3a) is
+        added back to it first."""
         # Q1b: the prediction step. Each tick adds one new vehicle vertex, initialised by the process model
         # x_{k+1} = x_k + ΔT M(ψ_k) u (ψ wrapped), and one VehicleKinematicsEdge from the previous vertex with the
         # stored odometry u as its measurement, Ω = R_odo⁻¹ and the tick length ΔT as its parameter.
@@ -181,8 +188,8 @@ class DriveBotSLAMSystem:
         self._built = False
 
     def _handle_compass(self, event):
-        # Q1c: one unary compass edge on the current vehicle vertex, e = ψ + Δψ_C − z. The fix: the fixed edge
-        # (EdgeHeadingPrior, the default) wraps e into [−π, π); the coursework's buggy edge does not.
+        # Q1c: one unary compass edge on the current vehicle vertex (appendix A.3); options.compass_edge picks the
+        # edge the coursework provides ("buggy") or the student's EdgeHeadingPrior ("fixed", the default).
         edge_class = BuggyCompassEdge if self.options.compass_edge == "buggy" else EdgeHeadingPrior
         info = information_from_covariance(event.covariance, "compass covariance")
         e = edge_class([self.current_vehicle_vertex], measurement=event.data, information=info,
@@ -191,6 +198,9 @@ class DriveBotSLAMSystem:
         self._built = False
 
     def _handle_gps(self, event):
+        """Q1d: the GPS ``event`` (data z (2,), covariance R_GPS) becomes one EdgePositionPrior on the current
+        vehicle vertex, with information R_GPS⁻¹ and the lever arm ``self.config.gps_position_offset``; sets
+        ``self._built = False`` (the graph changed)."""
         # Q1d: the GPS is a 2-D observation of the antenna, e = [x, y] + R(ψ) l − z with the lever arm l: one
         # unary EdgePositionPrior on the current vehicle vertex, Ω = R_GPS⁻¹.
         e = EdgePositionPrior([self.current_vehicle_vertex], measurement=event.data,
@@ -200,6 +210,17 @@ class DriveBotSLAMSystem:
         self._built = False
 
     def _handle_landmarks(self, event):
+        """Q2b: the observations of one LANDMARK ``event`` join the graph (coursework appendix A.5).
+
+        ``event.data`` (2, n): column l = [z_r, z_β] of the landmark ``event.landmark_ids[l]``; ``event.covariance``
+        R (2 × 2) for every column. For each column, in order: a landmark id not yet in ``self.landmark_vertices``
+        gets a ``LandmarkVertex(landmark_id, id=landmark_id)``, added to ``self.graph`` and to
+        ``self.landmark_vertices``, whose estimate is the position that the observation model maps to this
+        measurement from the pose of ``self.current_vehicle_vertex``; a landmark already known keeps its vertex
+        and estimate. Then one ``EdgeRangeBearing`` joins [current vehicle vertex, landmark vertex] (in that
+        order), with measurement [z_r, z_β] and information R⁻¹ (``information_from_covariance``). Finally
+        ``self._built = False`` (the graph changed).
+        """
         # Q2b: SLAM. A landmark seen for the first time gets a vertex, initialised by inverting the observation
         # model; every observation adds a range-bearing edge between the current vehicle vertex and its landmark,
         # e = [‖m − p‖ − z_r, wrap(atan2(m_y − y, m_x − x) − ψ − z_β)], Ω = R_laser⁻¹.
@@ -227,7 +248,17 @@ class DriveBotSLAMSystem:
         return period is not None and self.step_number % period == 0
 
     def _delete_prediction_edges(self):
-        """Q3a: remove the kinematics edges (keep the first one if requested); orphaned vertices go too."""
+        """Q3a: remove the vehicle prediction edges from the graph (``optimize`` calls it when
+        ``options.remove_prediction_edges``).
+
+        ``self.process_model_edges`` lists every VehicleKinematicsEdge the system has made, in order. Remove from
+        ``self.graph`` (``graph.remove_edge``) those made since the previous call: all of them, or, when
+        ``self.options.keep_first_prediction_edge``, all but the very first one (``process_model_edges[0]``), which
+        stays. ``self._removal_done_upto`` (0 before the first call) is there to remember how far the list has been
+        handled. An edge already removed is not removed again (``remove_edge`` raises GraphError for it); the graph
+        deletes every vertex left without edges; landmark edges and estimates are left alone. Finally
+        ``self._built = False`` (the graph changed).
+        """
         # Q3a: only edges added since the last call are visited; with keep_first_prediction_edge the very first
         # kinematics edge stays, which keeps the graph connected to the fixed first vertex.
         start = self._removal_done_upto
@@ -248,8 +279,7 @@ class DriveBotSLAMSystem:
     def optimize(self, max_iterations: int = 50) -> float:
         """Hook, prediction-edge removal (if requested), structure build, ``optimization_algorithm``; returns χ².
 
-        Raises helpers.graph.GaugeFreedomError when nothing anchors the graph (e.g. all prediction edges
-        removed: coursework Q3a).
+        Raises helpers.graph.GaugeFreedomError when nothing anchors the graph's gauge (its Hessian is singular).
         """
         if self.options.pre_optimization_hook is not None:  # Q3b: a pruning heuristic edits the graph here
             self._built = False        # (the structure is rebuilt even if the hook raises part-way)
@@ -329,11 +359,20 @@ class DriveBotSLAMSystem:
 
     # ================================================================================= statistics
     def graph_statistics(self) -> dict:
-        """Counts by type from the graph itself::
+        """Q2c: statistics of the graph as it is now, read from the graph itself (``self.graph.vertices()`` and
+        ``.edges()`` and each element's class; the system's own lists may hold vertices the graph has deleted).
+        Returns a dict; it changes nothing::
 
-            vehicle_vertices, landmark_vertices, edges_by_type {class name: count}, landmark_edges,
-            observations_per_step (landmark edges / vehicle vertices), observations_per_landmark,
-            measurement_dimensions, free_state_dimensions, dof (= the χ² sanity target).
+            vehicle_vertices           int: VehicleVertex objects in the graph
+            landmark_vertices          int: LandmarkVertex objects in the graph
+            edges_by_type              {class name: int}: the edges by their exact class, type(edge).__name__
+                                       (a subclass such as BuggyCompassEdge counts under its own name)
+            landmark_edges             int: the EdgeRangeBearing edges (the landmark observations)
+            observations_per_step      float: landmark_edges / vehicle_vertices (0.0 without vehicle vertices)
+            observations_per_landmark  float: landmark_edges / landmark_vertices (0.0 without landmarks)
+            measurement_dimensions     int: the sum of the edges' measurement_dimension
+            free_state_dimensions      int: the sum of the dimension of the vertices that are not fixed
+            dof                        int: measurement_dimensions − free_state_dimensions
         """
         # Q2c: everything is read from the graph: vertices and edges counted by their class (the Python
         # counterpart of MATLAB's isa), measurement dimensions per edge type, free state dimensions.

@@ -85,7 +85,8 @@ class EdgeSE2Prior(BaseEdge):
 
 
 class EdgePositionPrior(BaseEdge):
-    """GPS: h = [x, y] + R(ψ)·lever_arm, e = h − z (lever arm in the body frame, default [0, 0])."""
+    """GPS (coursework appendix A.4): h = [x, y] + R(ψ) l, e = h − z, with the antenna's lever arm l = ``lever_arm``
+    in the body frame (default [0, 0])."""
 
     vertex_types = (VertexSE2,)
     measurement_dimension = 2
@@ -93,6 +94,8 @@ class EdgePositionPrior(BaseEdge):
 
     @staticmethod
     def evaluate(states: list, z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
+        """Errors and Jacobians of E GPS edges at once: states = [x (E, 3)], z (E, 2), params {"lever_arm": (E, 2)}.
+        Returns (e (E, 2), [J (E, 2, 3)]) with J = ∂e/∂x for the update x ⊞ δ; with jacobians False, (e, None)."""
         # Q1d: the antenna sits at the lever arm l in the body frame, so h = [x, y] + R(ψ) l and the ψ column of J
         # is ∂(R(ψ) l)/∂ψ = [−(R l)_y, (R l)_x]; with |l| = 22.4 m it couples heading and position.
         (x,) = states
@@ -114,7 +117,8 @@ class EdgePositionPrior(BaseEdge):
 
 
 class EdgeHeadingPrior(BaseEdge):
-    """Compass: e = wrap(ψ + offset − z), J = [0, 0, 1]."""
+    """Compass (coursework appendix A.3): h = ψ + Δψ_C with the offset Δψ_C = ``offset``, e = h − z, an angle in
+    [−π, π) like every angle error of the graph."""
 
     vertex_types = (VertexSE2,)
     measurement_dimension = 1
@@ -122,6 +126,8 @@ class EdgeHeadingPrior(BaseEdge):
 
     @staticmethod
     def evaluate(states: list, z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
+        """Errors and Jacobians of E compass edges at once: states = [x (E, 3)], z (E, 1), params {"offset": (E,)}.
+        Returns (e (E, 1), [J (E, 1, 3)]) with J = ∂e/∂x for the update x ⊞ δ; with jacobians False, (e, None)."""
         (x,) = states
         e = wrap_angle(x[:, 2] + params["offset"] - z[:, 0])[:, None]
         if not jacobians:
@@ -132,15 +138,21 @@ class EdgeHeadingPrior(BaseEdge):
 
 
 class EdgeRangeBearing(BaseEdge):
-    """Range-bearing from a pose to a point, z = (range, bearing); d = m − t, r = ‖d‖:
-    e = [r − z_r, wrap(atan2(d_y, d_x) − ψ − z_β)],
-    J_x = [[−d_x/r, −d_y/r, 0], [d_y/r², −d_x/r², −1]],  J_m = [[d_x/r, d_y/r], [−d_y/r², d_x/r²]]."""
+    """Range and bearing of a landmark m = [m_x, m_y] from a vehicle pose x = [x, y, ψ] (coursework appendix A.5),
+    z = [z_r, z_β]:  h = [‖m − t‖, atan2(m_y − y, m_x − x) − ψ],  e = [h_r − z_r, wrap(h_β − z_β)]."""
 
     vertex_types = (VertexSE2, VertexPointXY)
     measurement_dimension = 2
 
     @staticmethod
     def evaluate(states: list, z: np.ndarray, params: dict, jacobians: bool = True) -> tuple:
+        """Errors and Jacobians of E range-bearing edges at once (the model of the class docstring).
+
+        ``states``: [poses (E, 3), rows [x, y, ψ]; landmarks (E, 2), rows [m_x, m_y]]; ``z`` (E, 2), rows
+        [z_r, z_β]; ``params``: none ({}). Returns (e, [J_pose, J_landmark]): e (E, 2) with the bearing error
+        wrapped into [−π, π), J_pose = ∂e/∂[x, y, ψ] (E, 2, 3) and J_landmark = ∂e/∂[m_x, m_y] (E, 2, 2), row /
+        block t for edge t; with ``jacobians=False``, (e, None). The inputs are left unchanged.
+        """
         # Q2b: the landmark observation model, range and bearing from the vehicle to the landmark, the bearing
         # relative to the heading and wrapped; J_m = [[d_x/r, d_y/r], [−d_y/r², d_x/r²]], J_x = [−J_m | [0, −1]ᵀ].
         x, m = states
