@@ -252,16 +252,27 @@ class _Search:
         return nearest_first(cand[t], gate).tolist()
 
     def visit(self, t, a, D2, mean, cov, cand, node):
-        """Node on level t: H has a pairings and joint distance D2; (mean, cov) are the predictions given H and
-        cand the candidates' joint distances (``candidate_distances``); ``node`` is its trace entry.
+        """Visit the node on level t of the interpretation tree and then, depth first, its subtree (t = T: a leaf).
 
-            if the bound says no descendant can beat Best:  cut (return)
-            if the node budget is spent:  stop the search
-            count the node; if H beats Best (more pairings, or as many and a smaller D²):  Best ← H
-            if t = T:  return
-            for each child i of level t (``children``, nearest first):
-                condition the predictions on (t, i), mark i used, visit(t + 1, H + (landmark, i)), undo
-            visit(t + 1, H)                                       # the star: the landmark unpaired
+        The node's hypothesis H is held in ``self.idx`` (each landmark's observation, or −1) and ``self.used`` (the
+        observations paired in H); it has ``a`` pairings and the joint distance ``D2`` = D²_H. ``mean`` (T, d) and
+        ``cov`` (T·d, T·d) are the levels' predictions given H, ``cand`` (T, m) the candidates' joint distances
+        D²_{H+(q,o)} (:func:`candidate_distances`), ``node`` the node's trace entry (−1 when not tracing).
+
+        The contract (the tree, Best and the bound: module docstring):
+
+        - the bound (:func:`pairings_bound`) comes first: a node that cannot beat Best is cut: not counted, marked
+          TRACE_BOUND, no subtree;
+        - then the budget: ``self.nodes`` counts the expanded nodes, the root included, at most ``self.max_nodes``
+          (None: no limit); the node met when the budget is spent is marked TRACE_BOUND, sets ``self.exhausted``,
+          and the search ends (nothing is expanded after it);
+        - an expanded node whose H beats Best becomes Best (``best_idx``: a copy of ``self.idx``, ``best_a``,
+          ``best_d2``) and is marked TRACE_BEST;
+        - below a node on level t < T: its children in the order of :meth:`children` (which records the joint-gate
+          failures), each a pairing of level t's landmark, then last the star (the landmark left unpaired); each is
+          recorded with ``record(node, t, its observation or −1, TRACE_EXPANDED, its D²)`` and visited on level
+          t + 1 with the predictions given its hypothesis (:func:`condition_on_pairing`, :func:`candidate_distances`);
+        - on return, ``self.idx`` and ``self.used`` are as they were on entry.
         """
         possible = pairings_bound(cand, t, a, D2, self.used, self.last_level, self.gates, self.best_a, self.best_d2)
         if a + possible < self.best_a or (a + possible == self.best_a and D2 >= self.best_d2):

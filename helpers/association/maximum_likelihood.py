@@ -31,8 +31,28 @@ def ml_scores(density: Gaussian | AssociationProblem, Y: ArrayLike | None) -> np
 
 def maximum_likelihood(density: Gaussian | AssociationProblem, Y: ArrayLike | None, alpha: float | None = None,
                        n_sigma: float = 3.0) -> Association:
-    """ML association, one-to-one: a pairing is allowed when ℓ_ki < −log α (``alpha`` None: the χ² gate of
-    ``n_sigma``). stats: ``{"alpha": alpha, "neg_log_alpha": −log α or None}``."""
+    """Maximum-likelihood association with the new-landmark likelihood α (lecture L09), greedy and one-to-one.
+
+    The cost of a pair (landmark k, observation i) is its negative log-likelihood ℓ_ki (module docstring). With
+    ``alpha`` given a pair is allowed when its likelihood beats α, ℓ_ki < −log α (the χ² gate plays no part);
+    with ``alpha`` None when it passes the χ² gate d²_ki ≤ χ²_d(c), c = 2Φ(n_σ) − 1. Allowed pairs are accepted
+    in increasing ℓ_ki (ties → lower landmark, then lower observation) while both ends are free.
+
+    Args:
+        density: the predicted measurements of the n landmarks (module ``common``), or a prepared problem.
+        Y: (d, m) observations, one per column, any d ≥ 1; m = 0 is allowed.
+        alpha: the likelihood of "new landmark", a positive finite density in measurement space, or None.
+        n_sigma: the χ² gate's confidence in standard deviations (used when ``alpha`` is None; it also sets the
+            reported ``jointly_compatible``).
+
+    Returns:
+        The :class:`Association` of ``finish``, named ``"maximum_likelihood"``, with stats ``{"alpha": alpha,
+        "neg_log_alpha": −log α, or None when alpha is None}``.
+
+    Raises:
+        ValueError: naming ``alpha`` when it is neither None nor a positive finite number; ``prepare``'s errors
+        for ``density``, ``Y`` and ``n_sigma``.
+    """
     if alpha is not None and (isinstance(alpha, bool) or not isinstance(alpha, numbers.Real)
                               or not np.isfinite(alpha) or alpha <= 0):
         raise ValueError(f"alpha must be a positive finite likelihood or None, got {alpha!r}")

@@ -73,9 +73,10 @@ def test_each_observation_goes_to_the_closest_landmark():
     """Well-separated landmarks: each observation is paired with the landmark nearest to it"""
     mu = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]])
     Y = np.array([[9.6, 0.3], [0.2, -0.4]]).T            # observation 0 near landmark 1, observation 1 near 0
+    given = {"distances (row k: landmark, column i: observation)": euclidean(mu, Y)}
     res = nearest_neighbour(isotropic(mu, [1.0, 1.0, 1.0]), Y)
-    check_idx(res, [1, 0, -1], "three landmarks, two observations", {"mu": mu, "Y": Y})
-    expect_equal(int(res.n_pairings), 2, "the number of pairings", given={"mu": mu, "Y": Y})
+    check_idx(res, [1, 0, -1], "three landmarks, two observations", given)
+    expect_equal(int(res.n_pairings), 2, "the number of pairings", given=given)
 
 
 def test_the_covariance_plays_no_part():
@@ -83,7 +84,7 @@ def test_the_covariance_plays_no_part():
     outside that landmark's covariance"""
     mu = np.array([[0.0, 0.0], [3.0, 0.0]])
     Y = np.array([[1.2, 0.0]]).T                           # 1.2 m from landmark 0 (σ = 0.1 m), 1.8 m from 1 (σ = 2 m)
-    given = {"mu": mu, "variances": [0.01, 4.0], "Y": Y}
+    given = {"distances": euclidean(mu, Y).ravel(), "σ of the landmarks": [0.1, 2.0]}
     check_idx(nearest_neighbour(isotropic(mu, [0.01, 4.0]), Y), [0, -1], "a certain and an uncertain landmark",
               given)
 
@@ -95,7 +96,7 @@ def test_pairs_are_taken_in_increasing_distance_one_to_one():
     Y = np.array([[0.9, 0.0], [-1.5, 0.0]]).T
     # distances: (0,0) 0.9, (1,0) 1.1, (0,1) 1.5, (1,1) 3.5 → accept (0,0), skip (1,0) and (0,1), accept (1,1);
     # the assignment with the smallest total, 1.5 + 1.1, would be [1, 0]
-    given = {"mu": mu, "Y": Y, "distances": euclidean(mu, Y)}
+    given = {"distances (row k: landmark, column i: observation)": euclidean(mu, Y)}
     check_idx(nearest_neighbour(isotropic(mu, [1.0, 1.0]), Y), [0, 1], "two observations wanting landmark 0",
               given)
 
@@ -105,34 +106,25 @@ def test_ties_go_to_the_lower_landmark_then_the_lower_observation():
     mu = np.array([[-1.0, 0.0], [1.0, 0.0]])
     Y = np.array([[0.0, 0.0]]).T                           # exactly 1 from both landmarks
     check_idx(nearest_neighbour(isotropic(mu, [1.0, 1.0]), Y), [0, -1], "one observation halfway between two "
-              "landmarks", {"mu": mu, "Y": Y})
+              "landmarks", {"distances": euclidean(mu, Y).ravel()})
     mu = np.array([[0.0, 0.0]])
     Y = np.array([[1.0, 0.0], [0.0, 1.0]]).T               # both exactly 1 from the landmark
     check_idx(nearest_neighbour(isotropic(mu, [1.0]), Y), [0], "two observations at the same distance",
-              {"mu": mu, "Y": Y})
+              {"distances": euclidean(mu, Y).ravel()})
 
 
 def test_max_distance_gates_the_pairs():
     """A pair farther than max_distance is never made; a pair exactly at max_distance is (distance ≤ gate)"""
     mu = np.array([[0.0, 0.0], [2.0, 0.0]])
     Y = np.array([[0.9, 0.0], [-1.5, 0.0]]).T              # distances 0.9, 1.1 / 1.5, 3.5 (see the greedy test)
-    given = {"mu": mu, "Y": Y, "distances": euclidean(mu, Y)}
+    given = {"distances (row k: landmark, column i: observation)": euclidean(mu, Y)}
     for gate, expected in ((None, [0, 1]), (2.0, [0, -1]), (0.5, [-1, -1])):
         check_idx(nearest_neighbour(isotropic(mu, [1.0, 1.0]), Y, max_distance=gate), expected,
                   "max_distance = %s" % gate, given)
     mu = np.array([[0.0, 0.0]])
     Y = np.array([[3.0, 4.0]]).T                           # exactly 5 away
     check_idx(nearest_neighbour(isotropic(mu, [1.0]), Y, max_distance=5.0), [0],
-              "a pair exactly at max_distance = 5", {"mu": mu, "Y": Y})
-
-
-def test_a_gated_pair_does_not_block_its_landmark():
-    """A pair outside max_distance takes nothing: its landmark and observation stay free for other pairs"""
-    mu = np.array([[0.0, 0.0], [3.0, 0.0]])
-    Y = np.array([[1.2, 0.0], [4.1, 0.0]]).T             # (0,0) 1.2 is the nearest pair overall, but over the gate
-    given = {"mu": mu, "Y": Y, "distances": euclidean(mu, Y)}
-    check_idx(nearest_neighbour(isotropic(mu, [1.0, 1.0]), Y, max_distance=1.15), [-1, 1],
-              "max_distance = 1.15", given)
+              "a pair exactly at max_distance = 5", {"mu": mu[0], "y": Y[:, 0]})
 
 
 def test_no_observations_leave_every_landmark_unpaired():
@@ -148,13 +140,13 @@ def test_the_result_is_the_common_association():
     mu = np.array([[0.0, 0.0], [4.0, 0.0]])
     cov = np.array([[1.0, 0.2, 0.5, 0.1], [0.2, 1.0, 0.0, 0.4], [0.5, 0.0, 2.0, 0.3], [0.1, 0.4, 0.3, 1.5]])
     Y = np.array([[0.5, -0.2], [3.1, 0.7]]).T
-    given = {"mu": mu, "P": cov, "Y": Y}
+    given = {"mu": mu, "Y": Y}
     res = nearest_neighbour(density_of(mu, cov), Y, max_distance=2.0, n_sigma=2.0)
     check_idx(res, [0, 1], "two landmarks, two observations", given)
     expect_equal(res.algorithm, "nearest_neighbour", "Association.algorithm", given=given)
     expect_equal(res.stats, {"gate": 2.0}, "Association.stats", given=given)
     expect_close(res.d2, joint_d2(mu, cov, Y, np.array([0, 1])), "Association.d2, the joint D² of the pairings "
-                 "with their cross-covariance", given=given, rtol=1e-9)
+                 "with their cross-covariance", given={"P": cov}, rtol=1e-9)
     gate = chi2.ppf(norm.cdf(2.0) - norm.cdf(-2.0), 4)
     expect_equal(bool(res.jointly_compatible), bool(res.d2 <= gate), "jointly_compatible at n_sigma = 2 "
                  "(D² ≤ χ²₄)", given=given)
@@ -187,7 +179,7 @@ def random_scene(seed, n, m, d):
     return mu, cov, Y
 
 
-@settings(max_examples=80, deadline=None, derandomize=True, database=None)
+@settings(max_examples=80, deadline=None, derandomize=True, database=None, report_multiple_bugs=False)
 @given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 5), m=st.integers(0, 5), d=st.sampled_from([1, 2, 3]),
        gate=st.sampled_from([None, 0.7, 1.5, 3.0]))
 def test_random_scenes_follow_the_greedy_rule(seed, n, m, d, gate):
@@ -196,10 +188,10 @@ def test_random_scenes_follow_the_greedy_rule(seed, n, m, d, gate):
     dist = euclidean(mu, Y)
     allowed = np.ones_like(dist, bool) if gate is None else dist <= gate
     expected = greedy(dist, allowed)
-    given = {"mu": mu, "Y": Y, "max_distance": gate, "distances ‖y_i − μ_k‖": dist}
+    given = {"max_distance": gate, "distances (row k: landmark, column i: observation)": dist}
     res = nearest_neighbour(density_of(mu, cov), Y, max_distance=gate)
     check_idx(res, expected.tolist(), "the greedy one-to-one pairs", given)
     expect_true(int(res.n_pairings) == int(np.count_nonzero(expected >= 0)), "n_pairings counts the pairs",
                 given=given, actual=res.n_pairings)
-    expect_close(res.d2, joint_d2(mu, cov, Y, expected), "D² of the pairings", given=given, rtol=1e-8,
-                 atol=1e-10)
+    expect_close(res.d2, joint_d2(mu, cov, Y, expected), "D² of the pairings (finish computes it)",
+                 given={"idx": expected}, rtol=1e-8, atol=1e-10)
