@@ -166,7 +166,8 @@ def report(collector, exercises) -> list[str]:
             continue
         texts = [collector.failure.get(n, "failed") for n in failed]
         if all(t.startswith("not written yet") for t in texts):
-            print("%s not written yet" % name)
+            print("%s not written yet: write %s (task: EXERCISES.md, section %s)" % (
+                name, ", ".join(t.split(":")[1] for t in ex["targets"]), ex["name"]))
             continue
         print("%s FAILED    %d of %d checks failed" % (name, len(failed), len(ran)))
         hints = ex.get("hints", {})

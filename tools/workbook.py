@@ -327,7 +327,7 @@ def grade(args):
     setup()
     code = run([venv_python(), "tools/grade.py"] + [a for a in args if a], env=tool_env(), check=False)
     if code != 0:
-        raise TaskError("not every exercise and test passed (the lines above say which)")
+        raise TaskError("not every exercise graded passed (the lines above say which)")
 
 
 def figures():
