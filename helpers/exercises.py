@@ -33,7 +33,7 @@ class ExerciseNotImplemented(NotImplementedError):
 def message(exercise: str, where: str) -> str:
     """The one-paragraph explanation shown for an unimplemented exercise."""
     return (f"exercise {exercise} is not implemented yet. Its task is in {where}. Write the function body, "
-            f"then check it with `make grade EX={exercise}` (Windows: `py -3.12 tools\\workbook.py grade "
+            f"then check it with `make grade EX={exercise}` (Windows: `py tools\\workbook.py grade "
             f"{exercise}`) and run this cell again.")
 
 

@@ -61,7 +61,7 @@ def student_readme(template: str, reg: dict) -> str:
     return template.replace("{n}", str(len(reg["exercise"])))
 
 
-ANSWER_PROMPT = "*Your answer:* (write it here; `make submission` collects this cell)"
+ANSWER_PROMPT = "*Your answer:* (write it in this cell, and keep the cell where it is)"
 
 
 def question_cells(cell: dict) -> list:
