@@ -16,7 +16,7 @@ optimiser's linear solver (``LDLSolver.backend``): "auto" (default: CHOLMOD wher
 advanced optimiser (``helpers.advanced.fast_graph``) runs GTSAM's own strategy on both
 datasets, so the comparison is like for like: algorithm="lm-gtsam" (GTSAM's default LM schedule and stopping rule)
 with VertexSE2Exp (GTSAM's Pose2 exponential-map update). The coursework's GN reaches the same W10000 optimum in
-11 iterations instead of 8 (notebook 09 shows it); on Victoria Park the coursework's GN/LM end in a worse local
+11 iterations instead of 8 (notebook 19 shows it); on Victoria Park the coursework's GN/LM end in a worse local
 minimum (χ² ≈ 3.3e5 vs 2.1e5; see RESULTS.md).
 """
 

@@ -1,4 +1,4 @@
-"""Record the peer results: GTSAM and g2o on W10000 and GTSAM on Victoria Park (notebook 09), and GTSAM's LM on
+"""Record the peer results: GTSAM and g2o on W10000 and GTSAM on Victoria Park (notebooks 09 and 19), and GTSAM's LM on
 every shipped dataset (the convergence references of ``tests/test_graph_convergence.py``).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/record_peers.py                 # everything
