@@ -29,3 +29,24 @@ def test_every_exercise_has_public_tests_and_no_fixture_is_orphaned():
     stored = {p.stem for p in exercise_fixtures.FIXTURES.glob("*.npz")}
     orphans = sorted(stored - set(RECIPES))
     assert not orphans, "fixture files without a recipe: %s" % orphans
+
+
+def test_every_check_of_every_exercise_has_a_hint():
+    """The grader prints the registry's hint under each failed check (issue 37, part B): none may be missing."""
+    import re
+    import tomllib
+
+    with open("tools/exercises.toml", "rb") as fh:
+        exercises = tomllib.load(fh)["exercise"]
+    folder = exercise_fixtures.ROOT / "tests" / "exercises"
+    missing = {}
+    for ex in exercises:
+        names = set()
+        for path in folder.glob("test_%s*.py" % ex["name"]):
+            if re.fullmatch(r"test_%s(_hidden)?\.py" % ex["name"], path.name):
+                names |= set(re.findall(r"(?m)^def (test_\w+)", path.read_text(encoding="utf-8")))
+        unknown = set(ex.get("hints", {})) - names
+        if names - set(ex.get("hints", {})) or unknown:
+            missing[ex["name"]] = {"without a hint": sorted(names - set(ex.get("hints", {}))),
+                                   "hint for no test": sorted(unknown)}
+    assert not missing, missing
