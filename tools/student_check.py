@@ -73,8 +73,8 @@ def notebook_job(edition, tmp, names, notebooks):
                            "--nbval-lax", "--nbval-current-env", "--nbval-cell-timeout", "300"]
                     + ["notebooks/%s.ipynb" % n for n in notebooks], timeout=1800)
     shutil.rmtree(tree, ignore_errors=True)
-    label = "notebooks %s run with only %s solved" % (", ".join(n[:2] for n in notebooks),
-                                                      ", ".join(sorted(names)) or "no exercise")
+    solved = "only %s solved" % ", ".join(sorted(names)) if names else "no exercise solved"
+    label = "notebooks %s run with %s" % (", ".join(n[:2] for n in notebooks), solved)
     return label, code == 0, out
 
 
