@@ -5,7 +5,7 @@
 PYTHON ?= python3
 TASK   := $(PYTHON) tools/workbook.py
 
-.PHONY: all setup figures test test-unit test-notebooks lab notebooks execute bench student grade student-check clean distclean
+.PHONY: all setup figures test test-unit test-notebooks lab notebooks execute bench student grade submission student-check clean distclean
 
 all: test
 
@@ -51,6 +51,10 @@ student:
 ## Check the exercises (each runs only its own tests, tests/exercises/): `make grade EX=name` one, `make grade` all.
 grade:
 	@$(TASK) grade $(EX)
+
+## The student's work in one zip to hand in (exercise files and notebooks): submission.zip.
+submission:
+	@$(TASK) submission
 
 ## The CI check of the student edition (every exercise alone, every notebook with only its exercises); CI=true make test runs it.
 student-check:

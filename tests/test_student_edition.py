@@ -439,3 +439,57 @@ def test_exercise_module_imports_nothing_from_helpers():
         [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
     assert not [m for m in imported if m.startswith("helpers") or m.startswith(".")], imported
     assert textwrap.dedent(exercises.message("x", "y")).startswith("exercise x is not implemented yet")
+
+
+def test_a_rebuild_removes_only_what_the_last_build_wrote(tree, tmp_path):
+    dest = student.build(tmp_path / "student", root=tree, quiet=True)
+    (dest / ".git").mkdir()
+    (dest / ".git" / "HEAD").write_text("ref: refs/heads/main\n", encoding="utf-8")
+    (dest / "notes.md").write_text("mine\n", encoding="utf-8")
+    (dest / "pkg" / "extra.py").write_text("x = 1\n", encoding="utf-8")
+    (tree / "pkg" / "gone.py").write_text("", encoding="utf-8")
+    student.build(dest, root=tree, quiet=True)
+    assert (dest / "pkg" / "gone.py").exists()
+    (tree / "pkg" / "gone.py").unlink()                     # the answer key drops a file: the rebuild drops it too
+    student.build(dest, root=tree, quiet=True)
+    assert not (dest / "pkg" / "gone.py").exists()
+    assert (dest / ".git" / "HEAD").exists() and (dest / "notes.md").read_text(encoding="utf-8") == "mine\n"
+    assert (dest / "pkg" / "extra.py").exists() and (dest / "pkg" / "shapes.py").exists()
+    student.remove_previous_build(dest)
+    assert sorted(p.name for p in dest.iterdir()) == [".git", "notes.md", "pkg"]
+    assert [p.name for p in (dest / "pkg").iterdir()] == ["extra.py"]
+
+
+def test_the_build_refuses_a_folder_it_did_not_make(tree, tmp_path):
+    dest = tmp_path / "mine"
+    dest.mkdir()
+    (dest / "thesis.tex").write_text("\\documentclass{article}\n", encoding="utf-8")
+    with pytest.raises(student.BuildError, match="was not built by tools/student.py"):
+        student.build(dest, root=tree, quiet=True)
+    assert [p.name for p in dest.iterdir()] == ["thesis.tex"]
+
+
+def test_submission_zip_holds_the_exercise_files_and_notebooks_and_says_what_is_missing(real_edition, tmp_path):
+    import zipfile
+
+    import submission
+
+    tree = tmp_path / "student"
+    shutil.copytree(real_edition, tree)
+    student.copy_solution(tree, "lab8_2a_individual_compatibility")
+    nb_path = next(p for p in sorted((tree / "notebooks").glob("*.ipynb"))
+                   if "student-answer" in p.read_text(encoding="utf-8"))
+    nb = json.loads(nb_path.read_text(encoding="utf-8"))
+    cell = next(c for c in nb["cells"] if "student-answer" in c["metadata"].get("tags", []))
+    cell["source"] = ["Because the gate follows the covariance."]
+    nb_path.write_text(json.dumps(nb), encoding="utf-8")
+    files = submission.exercise_files(tree)
+    submission.pack(tmp_path / "s.zip", tree)
+    names = zipfile.ZipFile(tmp_path / "s.zip").namelist()
+    notebooks = ["notebooks/%s" % p.name for p in (tree / "notebooks").glob("*.ipynb")]
+    assert sorted(names) == sorted(list(files) + notebooks)
+    assert "helpers/association/compatibility.py" in files and not any(n.startswith("tests/") for n in names)
+    todo = submission.unwritten(tree, files)
+    assert "lab8_2a_individual_compatibility" not in todo and len(todo) == len(student.load_registry()["exercise"]) - 1
+    empty, total = submission.empty_answers(tree)
+    assert total >= 40 and empty == total - 1

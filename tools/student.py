@@ -3,9 +3,12 @@
     python tools/student.py build [DEST]          # = make student (DEST defaults to build/student)
     python tools/student.py check DEST            # the self-check alone, on an existing student tree
     python tools/student.py copy-solution DEST EX # the answer key's body of exercise EX into DEST (the CI check)
+    python tools/student.py clean DEST            # remove what the last build wrote into DEST, nothing else
 
 The registry ``tools/exercises.toml`` names every exercise's target functions. The build copies the tracked
 tree (``git ls-files``; outside a git checkout a walk that skips .venv, build, figures and caches) to DEST, then
+(a rebuild first removes only the files the last build listed in DEST/.student-edition-files; it refuses a
+non-empty DEST it did not make, so an instructor's .git or notes there are never deleted)
 
 1. replaces each target's body (found with ``ast``; decorators, signature and docstring kept) by
    ``raise ExerciseNotImplemented("<name>", "EXERCISES.md, section <name>")``;
@@ -223,9 +226,43 @@ def tracked_files(root: pathlib.Path):
     return sorted(files)
 
 
+MANIFEST = ".student-edition-files"
+
+
+def remove_previous_build(dest: pathlib.Path) -> None:
+    """Delete what an earlier build wrote into ``dest`` (the files its manifest lists, then the folders they leave
+    empty) and nothing else: an instructor's .git, notes or other files there stay. A non-empty ``dest`` without
+    a manifest was not made by this tool: refuse."""
+    if not dest.exists():
+        return
+    manifest = dest / MANIFEST
+    if not manifest.exists():
+        if any(dest.iterdir()):
+            raise BuildError("%s exists and was not built by tools/student.py (no %s): choose an empty or new "
+                             "folder, or remove it yourself" % (dest, MANIFEST))
+        return
+    folders = set()
+    for rel in manifest.read_text(encoding="utf-8").splitlines():
+        path = dest / rel
+        if rel and ".." not in pathlib.PurePosixPath(rel).parts and path.is_file():
+            path.unlink()
+            folders.update(path.parents)
+    for folder in sorted((f for f in folders if dest in f.parents), key=lambda f: -len(f.parts)):
+        cache = folder / "__pycache__"
+        if cache.is_dir():
+            shutil.rmtree(cache, ignore_errors=True)
+        if folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()
+    manifest.unlink()
+
+
+def write_manifest(dest: pathlib.Path, written) -> None:
+    """List the files this build wrote (relative paths), so that the next build removes exactly these."""
+    (dest / MANIFEST).write_text("\n".join(sorted(set(written))) + "\n", encoding="utf-8")
+
+
 def copy_tree(root: pathlib.Path, dest: pathlib.Path, remove) -> list:
-    if dest.exists():
-        shutil.rmtree(dest)
+    remove_previous_build(dest)
     copied = []
     for rel in tracked_files(root):
         if not shipped(rel, remove):
@@ -300,6 +337,7 @@ def build(dest=None, root=ROOT, quiet=False) -> pathlib.Path:
     copied = copy_tree(root, dest, reg["edition"].get("remove", []))
     stub_targets(dest, reg)
     write_docs(root, dest, reg)
+    write_manifest(dest, copied + ["EXERCISES.md", "README.md"])
     problems = self_check(dest, root, reg)
     if problems:
         raise BuildError("self-check failed:\n  " + "\n  ".join(problems))
@@ -481,6 +519,8 @@ def main(argv=None) -> int:
             problems = self_check(pathlib.Path(argv[1]), ROOT, load_registry())
             print("\n".join(problems) if problems else "self-check passed")
             return 1 if problems else 0
+        elif argv[:1] == ["clean"] and len(argv) == 2:
+            remove_previous_build(pathlib.Path(argv[1]))
         elif argv[:1] == ["copy-solution"] and len(argv) == 3:
             copy_solution(pathlib.Path(argv[1]), argv[2])
         else:

@@ -356,8 +356,20 @@ def bench():
 
 
 def clean(everything=False):
+    """Remove build/, figures/ and caches (and .venv with ``everything``). The student edition in build/student
+    loses only the files its build wrote (tools/student.py clean): an instructor's .git or notes there stay."""
+    edition = ROOT / "build" / "student"
+    if (edition / ".student-edition-files").exists() and (ROOT / "tools" / "student.py").exists():
+        run([sys.executable, "tools/student.py", "clean", str(edition)])
     for name in ["build", "figures", ".pytest_cache"] + ([".venv"] if everything else []):
-        shutil.rmtree(str(ROOT / name), ignore_errors=True)
+        path = ROOT / name
+        if name == "build" and edition.exists():          # keep what is left of build/student
+            for child in path.iterdir():
+                if child != edition:
+                    shutil.rmtree(str(child), ignore_errors=True) if child.is_dir() else child.unlink()
+            print("removed build/ (build/student: only what its build wrote)")
+            continue
+        shutil.rmtree(str(path), ignore_errors=True)
         print("removed %s/" % name)
 
 
@@ -372,6 +384,7 @@ TASKS = {
     "lab": lambda args: lab(),
     "bench": lambda args: bench(),
     "student": lambda args: student(),
+    "submission": lambda args: run([sys.executable, "tools/submission.py"] + list(args)),
     "grade": lambda args: grade(args),
     "student-check": lambda args: (setup(), run([venv_python(), "tools/student_check.py"], env=tool_env())),
     "clean": lambda args: clean(),
