@@ -319,6 +319,12 @@ def student_notebooks():
             env=tool_env())
 
 
+def grade_all(args):
+    """The instructor's batch grading of a folder of submission zips (tools/grade_all.py; answer key only)."""
+    setup()
+    run([venv_python(), "tools/grade_all.py"] + list(args), env=tool_env())
+
+
 def student():
     run([sys.executable, "tools/student.py", "build"])
 
@@ -385,6 +391,7 @@ TASKS = {
     "bench": lambda args: bench(),
     "student": lambda args: student(),
     "submission": lambda args: run([sys.executable, "tools/submission.py"] + list(args)),
+    "grade-all": lambda args: grade_all(args),
     "grade": lambda args: grade(args),
     "student-check": lambda args: (setup(), run([venv_python(), "tools/student_check.py"], env=tool_env())),
     "clean": lambda args: clean(),
