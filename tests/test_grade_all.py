@@ -16,7 +16,9 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 
 import grade_all  # noqa: E402
+import grading_tree  # noqa: E402
 import student  # noqa: E402
+import submission_files  # noqa: E402
 
 EX = "lab8_2a_individual_compatibility"
 OTHER = "lab8_2c_joint_compatibility"     # in the same module file
@@ -39,35 +41,35 @@ def make_zip(path: pathlib.Path, files: dict) -> pathlib.Path:
 
 # ---------------------------------------------------------------------------------------------- unit tests
 def test_safe_name_rejects_absolute_and_climbing_paths():
-    assert grade_all.safe_name("helpers/a.py") == "helpers/a.py"
-    assert grade_all.safe_name("./helpers\\a.py") == "helpers/a.py"
+    assert submission_files.safe_name("helpers/a.py") == "helpers/a.py"
+    assert submission_files.safe_name("./helpers\\a.py") == "helpers/a.py"
     for bad in ("../helpers/a.py", "/etc/passwd", "helpers/../../x.py", "C:/x.py", ""):
-        assert grade_all.safe_name(bad) is None
+        assert submission_files.safe_name(bad) is None
 
 
 def test_added_helpers_are_only_new_module_level_functions():
     key = "import numpy as np\nLIMIT = 3\n\ndef f(x):\n    return x\n\nclass C:\n    pass\n"
     mine = key + ("\n@staticmethod\ndef _mine(x):\n    return 2 * x\n\ndef f2():\n    pass\n"
                   "\ndef LIMIT():\n    pass\n\ndef np():\n    pass\n\nclass D:\n    pass\nZ = 1\n")
-    extra = grade_all.added_helpers(mine, key)
+    extra = submission_files.added_helpers(mine, key)
     assert [e.splitlines()[0] for e in extra] == ["@staticmethod", "def f2():"]
 
 
 def test_read_modules_reports_missing_unparsable_and_not_a_zip(tmp_path):
     bad = make_zip(tmp_path / "s.zip", {MODULE: "def individual_compatibility(:\n", "../../evil.py": "x = 1\n"})
-    sources, problems = grade_all.read_modules(bad, [MODULE, "helpers/features.py"])
+    sources, problems = submission_files.read_modules(bad, [MODULE, "helpers/features.py"])
     assert sources == {}
     assert "does not parse" in problems[MODULE]
     assert "has no file helpers/features.py" in problems["helpers/features.py"]
     (tmp_path / "t.zip").write_text("not a zip", encoding="utf-8")
     with pytest.raises(ValueError, match="not a readable zip"):
-        grade_all.read_modules(tmp_path / "t.zip", [MODULE])
+        submission_files.read_modules(tmp_path / "t.zip", [MODULE])
 
 
 def test_the_grading_process_gets_no_secrets_of_the_instructors_shell(tmp_path, monkeypatch):
     monkeypatch.setenv("GITHUB_TOKEN", "secret")
     monkeypatch.setenv("PYTEST_ADDOPTS", "-p conftest_of_somebody")
-    env = grade_all.grader_env(tmp_path)
+    env = grading_tree.grader_env(tmp_path)
     assert "GITHUB_TOKEN" not in env and "PYTEST_ADDOPTS" not in env
     assert env["PYTHONPATH"] == str(tmp_path) and "PATH" in env
 
@@ -81,7 +83,7 @@ def test_numba_cache_is_copied_only_for_unchanged_modules(tmp_path):
         (key / "helpers" / "__pycache__" / (name[:-3] + ".f-3.py311.nbi")).write_text("index", encoding="utf-8")
         shutil.copy2(key / "helpers" / name, tree / "helpers" / name)
     (tree / "helpers" / "changed.py").write_text("y = 2\n", encoding="utf-8")
-    assert grade_all.copy_numba_cache(key, tree) == 1
+    assert grading_tree.copy_numba_cache(key, tree) == 1
     assert [p.name for p in (tree / "helpers" / "__pycache__").iterdir()] == ["same.f-3.py311.nbi"]
 
 
@@ -96,12 +98,12 @@ def test_merge_takes_bodies_and_added_helpers_only(tmp_path):
     files = {"ex_f": [("m.py", "f")], "ex_g": [("m.py", "g")]}
     mine = ("import os\nimport subprocess\n\ndef f(x):\n    return _twice(x)\n\ndef g(x): return x\n\n"
             "def _twice(x):\n    return 2 * x\n\ndef os():\n    pass\n\nEVIL = subprocess.run\n")
-    problems = grade_all.merge_submission(tree.parent, {"m.py": mine}, files, root=key.parent)
+    problems = submission_files.merge_submission(tree.parent, {"m.py": mine}, files, root=key.parent)
     assert list(problems) == ["ex_g"] and "signature line" in problems["ex_g"]
     merged = tree.read_text(encoding="utf-8")
     assert '"""Doc."""\n    return _twice(x)\n' in merged and "def _twice(x):" in merged
     assert "subprocess" not in merged and "def os" not in merged and merged.count("raise NotImplementedError") == 1
-    problems = grade_all.merge_submission(tree.parent, {"m.py": "def g(x):\n    return 1\n"}, files,
+    problems = submission_files.merge_submission(tree.parent, {"m.py": "def g(x):\n    return 1\n"}, files,
                                           root=key.parent)
     assert "no function f" in problems["ex_f"] and "ex_g" not in problems
 
@@ -129,7 +131,7 @@ def edition_stub(edition) -> str:
 def answered_notebook(edition) -> tuple[str, str, str]:
     """(notebook path, cell id, text): the edition's notebook of the answer key's first answer cell, with that
     cell answered."""
-    first = grade_all.answer_cells()[0]
+    first = submission_files.answer_cells()[0]
     nb = json.loads((edition / first["notebook"]).read_text(encoding="utf-8"))
     cell = next(c for c in nb["cells"] if c.get("id") == first["cell"])
     assert "student-answer" in cell["metadata"]["tags"]
@@ -198,7 +200,7 @@ def test_a_hang_scores_zero_with_time_limit_and_the_other_exercise_is_graded(tmp
     alone, and only lab8_2a scores 0 (about 35 s: the first limit, the hang's own limit, lab8_2c's run)."""
     hang = key_source().replace(KEY_LINE, "    while True:\n        pass\n")
     path = make_zip(tmp_path / "hang.zip", {MODULE: hang})
-    tree = grade_all.build_grading_tree(tmp_path / "tree")
+    tree = grading_tree.build_grading_tree(tmp_path / "tree")
     result = grade_all.grade_submission(path, tree, student.load_registry(), timeout=5, timeout_per_exercise=20,
                                         only=[EX, OTHER])
     assert result["scores"] == {EX: 0, OTHER: 1}
@@ -210,7 +212,7 @@ def test_written_answers_are_collected_by_the_answer_keys_cell_ids(batch, editio
     out, results, _ = batch
     notebook, cell, _ = answered_notebook(edition)
     answers = json.loads((out / "answers" / "correct.json").read_text(encoding="utf-8"))
-    assert len(answers) == len(grade_all.answer_cells())
+    assert len(answers) == len(submission_files.answer_cells())
     mine = next(a for a in answers if a["cell"] == cell)
     assert mine["status"] == "answered" and mine["answer"] == "My answer: the vectorised gate." and mine["question"]
     same_notebook = [a["status"] for a in answers if a["notebook"] == notebook and a["cell"] != cell]

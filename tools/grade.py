@@ -1,6 +1,6 @@
 """Grade the exercises: run each exercise's own tests and say what failed and why (``make grade [EX=name]``).
 
-    python tools/grade.py [NAME ...] [--student-ok] [--status FILE] [--verbose]
+    python tools/grade.py [NAME ...] [--student-ok] [--status FILE] [--all] [--timeout S] [--verbose]
     python tools/grade.py NAME --isolate        # the answer key: every OTHER exercise's targets raise
 
 An exercise ``NAME`` is graded by ``tests/exercises/test_NAME.py`` (the public tests, shipped with the student
@@ -18,7 +18,10 @@ produce come from recorded fixtures), so every exercise is graded on its own, in
 
 then ``exercises: N passed, M failed``. Hints come from the registry (``tools/exercises.toml``, ``hints``: one per
 test function). Exit status: 0 when every graded exercise passed, else 1; with ``--student-ok`` (the student
-edition's ``make test``) 0 unless the grading itself broke. ``--status FILE`` writes the passed exercises as JSON;
+edition's ``make test``) 0 unless the grading itself broke. ``--status FILE`` writes the passed exercises and each
+test's outcome as JSON (``{"passed": [NAME, ...], "tests": {nodeid: "passed" | "failed" | "skipped"}}``); ``--all``
+prints every failed check (the instructor's feedback) instead of the first three; ``--timeout S`` is the time limit
+of one check (default 120 s; pytest-timeout: a check that runs longer fails with "time limit", the others go on);
 ``--verbose`` shows pytest's own output. ``--isolate`` (one exercise, in the answer key) first swaps the code
 of every other exercise's target functions for a stub that raises ``ExerciseNotImplemented``, as the student
 edition does: the exercise's tests must pass anyway (the check that they need no other exercise).
@@ -37,6 +40,7 @@ from contextlib import redirect_stderr, redirect_stdout
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 TESTS = pathlib.Path("tests") / "exercises"
 MAX_LINES = 14                      # of one failure's text
+TEST_TIME_LIMIT = 120.0             # seconds per check (--timeout)
 
 
 def load(root=ROOT) -> dict:
@@ -61,6 +65,13 @@ class Collector:
 
     def __init__(self):
         self.outcome, self.failure, self.doc, self.errors = {}, {}, {}, []
+        self.time_limit = set()                 # exercises with a check that hit the time limit
+
+    def pytest_runtest_setup(self, item):
+        if exercise_of(item.nodeid) in self.time_limit:     # one endless loop costs one time limit, not one per check
+            import pytest
+
+            pytest.skip("not run: an earlier check of this exercise hit the time limit")
 
     def pytest_collection_modifyitems(self, session, config, items):
         for item in items:
@@ -75,6 +86,8 @@ class Collector:
         if report.failed:
             self.outcome[report.nodeid] = "failed"
             self.failure.setdefault(report.nodeid, _failure_text(report))
+            if self.failure[report.nodeid].startswith("time limit"):
+                self.time_limit.add(exercise_of(report.nodeid))
         elif report.when == "call" or report.skipped:
             self.outcome.setdefault(report.nodeid, "skipped" if report.skipped else "passed")
 
@@ -86,6 +99,9 @@ def _failure_text(report) -> str:
     crash = getattr(getattr(report, "longrepr", None), "reprcrash", None)
     message = crash.message if crash is not None else text.strip().splitlines()[-1:] and text.strip().splitlines()[-1]
     stub = re.search(r"exercise (\w+) is not implemented yet", text)
+    limit = re.search(r"Timeout \(>([\d.]+)s\) from pytest-timeout", text)
+    if limit:
+        return "time limit: this check ran longer than %g s (an endless loop, or far too slow)" % float(limit.group(1))
     if stub:
         return "not written yet: exercise %s raises ExerciseNotImplemented" % stub.group(1)
     if message.startswith("AssertionError: check:"):
@@ -125,13 +141,13 @@ def isolate(keep: str, exercises) -> int:
     return count
 
 
-def run_tests(files, collector, root=ROOT, verbose=False) -> int:
+def run_tests(files, collector, root=ROOT, verbose=False, time_limit=TEST_TIME_LIMIT) -> int:
     import pytest
 
     os.chdir(root)
     sys.path.insert(0, str(root))
     args = ["-q", "-p", "no:cacheprovider", "-p", "no:randomly", "--tb=long", "-W", "error",
-            "-o", "addopts="] + [str(f) for f in files]
+            "-o", "addopts=", "--timeout=%g" % time_limit] + [str(f) for f in files]
     if verbose:
         return pytest.main(args, plugins=[collector])
     buffer = io.StringIO()
@@ -142,8 +158,9 @@ def run_tests(files, collector, root=ROOT, verbose=False) -> int:
     return code
 
 
-def report(collector, exercises) -> list[str]:
-    """Print one block per exercise and the summary line; returns the names of the passed exercises."""
+def report(collector, exercises, shown=3) -> list[str]:
+    """Print one block per exercise (its first ``shown`` failed checks; None: all) and the summary line; returns the
+    names of the passed exercises. A hidden test's check is marked "[hidden]"."""
     width = max(len(ex["name"]) for ex in exercises) + 2
     by_ex = {ex["name"]: [] for ex in exercises}
     for nodeid, outcome in collector.outcome.items():
@@ -171,16 +188,17 @@ def report(collector, exercises) -> list[str]:
             continue
         print("%s FAILED    %d of %d checks failed" % (name, len(failed), len(ran)))
         hints = ex.get("hints", {})
-        for nodeid in failed[:3]:
+        for nodeid in failed[:shown]:
             func = nodeid.split("::")[-1].split("[")[0]
             title = collector.doc.get(nodeid) or func
-            print("  ✗ %s (%s)" % (title, nodeid.split("::", 1)[-1]))
+            hidden = "[hidden] " if "_hidden.py::" in nodeid else ""
+            print("  ✗ %s%s (%s)" % (hidden, title, nodeid.split("::", 1)[-1]))
             print("      " + collector.failure.get(nodeid, "failed").replace("\n", "\n      "))
             if func in hints:
                 print("    hint: " + " ".join(hints[func].split()))
-        if len(failed) > 3:
+        if shown is not None and len(failed) > shown:
             print("  ... and %d more (make grade EX=%s, or tools/grade.py %s --verbose)"
-                  % (len(failed) - 3, ex["name"], ex["name"]))
+                  % (len(failed) - shown, ex["name"], ex["name"]))
     print("exercises: %d passed, %d failed" % (len(passed), len(exercises) - len(passed)), flush=True)
     return passed
 
@@ -188,6 +206,11 @@ def report(collector, exercises) -> list[str]:
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     status_file = argv.pop(argv.index("--status") + 1) if "--status" in argv else None
+    try:
+        time_limit = float(argv.pop(argv.index("--timeout") + 1)) if "--timeout" in argv else TEST_TIME_LIMIT
+    except (IndexError, ValueError):
+        print("--timeout takes the time limit of one check in seconds, e.g. --timeout 60")
+        return 2
     names = [a for a in argv if not a.startswith("--")]
     exercises = load()["exercise"]
     known = [ex["name"] for ex in exercises]
@@ -204,11 +227,14 @@ def main(argv=None) -> int:
             return 2
         sys.path.insert(0, str(ROOT))
         print("isolation: %d targets of other exercises raise" % isolate(graded[0]["name"], exercises))
-    code = run_tests(files, collector, verbose="--verbose" in argv) if files else 5
-    passed = report(collector, graded)
+    code = run_tests(files, collector, verbose="--verbose" in argv, time_limit=time_limit) if files else 5
+    passed = report(collector, graded, shown=None if "--all" in argv else 3)
     if status_file:
+        tests = dict(collector.outcome)
+        tests.update({nodeid: "failed" for nodeid, _ in collector.errors})
         pathlib.Path(status_file).parent.mkdir(parents=True, exist_ok=True)
-        pathlib.Path(status_file).write_text(json.dumps({"passed": passed}), encoding="utf-8")
+        status = {"passed": passed, "tests": tests, "time_limit": sorted(collector.time_limit)}
+        pathlib.Path(status_file).write_text(json.dumps(status), encoding="utf-8")
     if code not in (0, 1, 5):
         return 1
     if "--student-ok" in argv:

@@ -1,0 +1,176 @@
+"""The grading tree a class is graded in, running the answer key's grader in it, and scoring by test group.
+
+The grading tree is the student edition built from the answer key (tools/student.py) plus the answer key's hidden
+tests and hidden fixtures, its ``tools/grade.py`` and ``tools/exercises.toml``; each submission is graded in its own
+copy of it (tools/grade_all.py, tools/gradescope.py). ``run_grader`` runs that copy's ``tools/grade.py`` in its own
+process (its own session: killed whole at the time limit) with a minimal environment and its output capped.
+
+Scores: every test function of an exercise belongs to one group of the registry (``[exercise.groups.ID]`` with
+``title``, ``points``, ``tests``); a group scores its points when every test in it passed (a test that did not run,
+e.g. after a time limit or a file that does not import, counts as failed); the exercise's score is the sum of its
+passed groups. An exercise without groups has one group of all its tests worth its ``points`` (default 1).
+"""
+from __future__ import annotations
+
+import ast
+import json
+import os
+import pathlib
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import student  # noqa: E402  (the answer key's builder)
+
+ROOT = student.ROOT
+MAX_OUTPUT_CHARS = 60_000           # of the grader's output kept per run
+TEST_TIME_LIMIT = 60.0              # seconds per check in the grading runs
+
+
+# ---------------------------------------------------------------------------------------------- the grading tree
+def build_grading_tree(dest, root=ROOT) -> pathlib.Path:
+    """The student edition of ``root`` in ``dest`` plus the answer key's hidden tests and fixtures, grade.py and the
+    registry: what every submission is graded in."""
+    root, dest = pathlib.Path(root), pathlib.Path(dest)
+    student.build(dest, root=root, quiet=True)
+    hidden = list((root / "tests" / "exercises").glob("test_*_hidden.py"))
+    hidden += list((root / "tests" / "exercises" / "fixtures").glob("*_hidden.npz"))
+    for path in hidden + [root / "tools" / "grade.py", root / "tools" / "exercises.toml"]:
+        rel = path.relative_to(root)
+        (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(path, dest / rel)
+    copy_numba_cache(root, dest)
+    return dest
+
+
+def copy_numba_cache(src_root, tree) -> int:
+    """Copy numba's on-disk cache (``__pycache__/*.nbi``, ``*.nbc``) of every module of ``src_root`` whose file in
+    ``tree`` is the same (bytes and time stamp: numba checks the time stamp and size of the source), so each
+    submission's copy starts with the compiled kernels instead of compiling them again (about 40 s of CPU per
+    submission); returns how many files were copied. The cache of a changed module is not copied (numba would
+    reject it anyway)."""
+    src_root, tree = pathlib.Path(src_root), pathlib.Path(tree)
+    count = 0
+    for cache in src_root.glob("helpers/**/__pycache__/*.nb[ic]"):
+        source = cache.parent.parent / (cache.name.split(".", 1)[0] + ".py")
+        rel = source.relative_to(src_root)
+        mine = tree / rel
+        try:
+            same = (source.exists() and mine.exists() and source.stat().st_mtime == mine.stat().st_mtime
+                    and source.read_bytes() == mine.read_bytes())
+        except OSError:
+            same = False
+        if same:
+            (mine.parent / "__pycache__").mkdir(exist_ok=True)
+            shutil.copy2(cache, mine.parent / "__pycache__" / cache.name)
+            count += 1
+    return count
+
+
+# ---------------------------------------------------------------------------------------------- running
+def run_grader(tree: pathlib.Path, names, timeout: float,
+               test_limit: float = TEST_TIME_LIMIT) -> tuple[str, dict | None, bool]:
+    """Run the tree's tools/grade.py on ``names`` (every failed check shown, ``test_limit`` seconds per check) in
+    its own process and session, killed whole after ``timeout`` seconds. Returns (its output, capped; its --status
+    JSON ``{"passed": [...], "tests": {nodeid: outcome}}`` or None when it wrote none; whether it timed out)."""
+    status = tree / ".grade-status.json"
+    status.unlink(missing_ok=True)
+    with tempfile.TemporaryFile() as out:
+        proc = subprocess.Popen([sys.executable, "tools/grade.py", *names, "--all", "--timeout", "%g" % test_limit,
+                                 "--status", str(status)], cwd=str(tree), env=grader_env(tree), stdout=out,
+                                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                start_new_session=(os.name == "posix"))
+        timed_out = False
+        try:
+            proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            timed_out = True
+            _kill(proc)
+        out.seek(0)
+        text = out.read(MAX_OUTPUT_CHARS * 4).decode("utf-8", errors="replace")
+    if len(text) > MAX_OUTPUT_CHARS:
+        text = text[:MAX_OUTPUT_CHARS] + "\n... (output cut at %d characters)\n" % MAX_OUTPUT_CHARS
+    result = None
+    if not timed_out and status.exists():
+        try:
+            result = json.loads(status.read_text(encoding="utf-8"))
+            result = {"passed": list(result.get("passed", [])), "tests": dict(result.get("tests", {})),
+                      "time_limit": list(result.get("time_limit", []))}
+        except (ValueError, AttributeError, TypeError):
+            result = None
+    return text, result, timed_out
+
+
+KEPT_ENV = {"PATH", "HOME", "USERPROFILE", "LANG", "TMP", "TEMP", "TMPDIR", "SYSTEMROOT", "SYSTEMDRIVE", "COMSPEC",
+            "VIRTUAL_ENV", "CI"}
+KEPT_ENV_PREFIXES = ("LC_", "NUMBA_", "OMP_", "MKL_", "OPENBLAS_")
+
+
+def grader_env(tree: pathlib.Path) -> dict:
+    """The grading process's environment: only what Python, numpy and numba need (no tokens or other settings of
+    the instructor's shell reach the student's code), one BLAS thread per worker unless set, PYTHONPATH at the
+    tree."""
+    env = {k: v for k, v in os.environ.items() if k in KEPT_ENV or k.startswith(KEPT_ENV_PREFIXES)}
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        env.setdefault(var, "1")
+    env.update(PYTHONPATH=str(tree), PYTHONIOENCODING="utf-8", MPLBACKEND="Agg", PYTHONDONTWRITEBYTECODE="1")
+    return env
+
+
+def _kill(proc) -> None:
+    try:
+        if os.name == "posix":
+            os.killpg(proc.pid, signal.SIGKILL)
+        else:
+            proc.kill()
+    except (ProcessLookupError, PermissionError):
+        pass
+    proc.wait()
+
+
+
+# ---------------------------------------------------------------------------------------------- scores
+def test_functions(name: str, root=ROOT) -> dict:
+    """{test function name: True when it is in the hidden file} of exercise ``name``'s test files at ``root``."""
+    out = {}
+    for hidden, fname in ((False, "test_%s.py" % name), (True, "test_%s_hidden.py" % name)):
+        path = pathlib.Path(root) / "tests" / "exercises" / fname
+        if path.exists():
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+            out.update({n.name: hidden for n in tree.body
+                        if isinstance(n, ast.FunctionDef) and n.name.startswith("test_")})
+    return out
+
+
+def groups_of(ex: dict, root=ROOT) -> list[dict]:
+    """The exercise's test groups: [{"id", "title", "points", "tests", "hidden"}] in registry order."""
+    funcs = test_functions(ex["name"], root)
+    groups = ex.get("groups") or {"all": {"title": "all checks", "points": ex.get("points", 1), "tests": list(funcs)}}
+    return [{"id": gid, "title": g["title"], "points": float(g["points"]), "tests": list(g["tests"]),
+             "hidden": any(funcs.get(t, False) for t in g["tests"])} for gid, g in groups.items()]
+
+
+def points_of(ex: dict) -> float:
+    return float(ex.get("points", 1))
+
+
+def score_groups(ex: dict, outcomes: dict, root=ROOT, reason: str | None = None) -> list[dict]:
+    """Each group of ``ex`` with its score: ``outcomes`` = {pytest node id: "passed" | "failed" | "skipped"} of the
+    grading run; a group scores its points when each of its test functions ran and every run of it (each
+    parametrisation) passed. ``reason`` (the exercise could not be graded) scores every group 0.
+    Adds "score" and "failed" (the test functions that did not pass) to each group."""
+    by_func = {}
+    for nodeid, outcome in outcomes.items():
+        path, _, rest = nodeid.partition("::")
+        stem = pathlib.PurePosixPath(path).stem
+        if stem in ("test_%s" % ex["name"], "test_%s_hidden" % ex["name"]):
+            by_func.setdefault(rest.split("[")[0], []).append(outcome)
+    out = []
+    for group in groups_of(ex, root):
+        failed = [t for t in group["tests"] if reason or not by_func.get(t)
+                  or any(o != "passed" for o in by_func[t])]
+        out.append(dict(group, failed=failed, score=0.0 if failed else group["points"]))
+    return out
