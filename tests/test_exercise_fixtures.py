@@ -50,3 +50,31 @@ def test_every_check_of_every_exercise_has_a_hint():
             missing[ex["name"]] = {"without a hint": sorted(names - set(ex.get("hints", {}))),
                                    "hint for no test": sorted(unknown)}
     assert not missing, missing
+
+
+def test_every_check_of_every_exercise_is_in_one_scored_group():
+    """The instructor's grader scores per test group (issue 38, part C): each test function in exactly one group,
+    a group all public or all hidden, group points adding up to the exercise's points."""
+    import re
+    import tomllib
+
+    with open("tools/exercises.toml", "rb") as fh:
+        exercises = tomllib.load(fh)["exercise"]
+    folder = exercise_fixtures.ROOT / "tests" / "exercises"
+    problems = {}
+    for ex in exercises:
+        hidden_of = {}
+        for suffix, hidden in (("", False), ("_hidden", True)):
+            path = folder / ("test_%s%s.py" % (ex["name"], suffix))
+            if path.exists():
+                hidden_of.update({n: hidden for n in re.findall(r"(?m)^def (test_\w+)", path.read_text("utf-8"))})
+        grouped = [t for g in ex.get("groups", {}).values() for t in g["tests"]]
+        mixed = [gid for gid, g in ex.get("groups", {}).items() if len({hidden_of.get(t) for t in g["tests"]}) != 1]
+        total = sum(g["points"] for g in ex.get("groups", {}).values())
+        if sorted(grouped) != sorted(hidden_of) or mixed or abs(total - ex.get("points", -1)) > 1e-9:
+            problems[ex["name"]] = {"not grouped": sorted(set(hidden_of) - set(grouped)),
+                                    "twice or unknown": sorted(t for t in set(grouped)
+                                                               if grouped.count(t) > 1 or t not in hidden_of),
+                                    "public and hidden mixed": mixed, "group points": total,
+                                    "points": ex.get("points")}
+    assert not problems, problems
