@@ -1,12 +1,15 @@
-"""The batch grader (tools/grade_all.py) on synthetic submissions of one exercise.
+"""The instructor's grader (tools/grade_all.py, grading_tree.py, submission_files.py, grade_guard.py, gradescope.py)
+on synthetic submissions (tools/synthetic_class.py: each kind of bad submission, with its designed score).
 
-Unit tests of the zip reading and merging need no grading run. The end-to-end part builds the submissions in a
-temporary folder from the answer key's own module file (lab8_2a_individual_compatibility: its tests take seconds)
-and grades them in ONE batch (about 20 s on 2 workers: a grading run per submission that reaches the grader),
-plus one submission whose first exercise hangs, on its own with short time limits (about 35 s)."""
+Unit tests of the zip reading, merging, scoring and guard need no grading run. The end-to-end part grades one
+exercise (lab8_2a_individual_compatibility: its tests take seconds) of 14 submissions in ONE batch, the two hangs
+on their own with short time limits, and runs the Gradescope autograder's run_autograder in a folder laid out
+like /autograder (about 2 min in all)."""
 import json
+import os
 import pathlib
 import shutil
+import subprocess
 import sys
 import zipfile
 
@@ -16,20 +19,25 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 
 import grade_all  # noqa: E402
+import gradescope  # noqa: E402
 import grading_tree  # noqa: E402
 import student  # noqa: E402
 import submission_files  # noqa: E402
+import synthetic_class  # noqa: E402
+
+pytestmark = pytest.mark.cpu_independent   # grading logic and files; the exercises' numbers are tested elsewhere
 
 EX = "lab8_2a_individual_compatibility"
 OTHER = "lab8_2c_joint_compatibility"     # in the same module file
-MODULE = "helpers/association/compatibility.py"
-KEY_LINE = "    return density.marginal([2 * j, 2 * j + 1]).is_within_confidence_region(Y[:, i], n_sigma)\n"
+NN = "l09_euclidean_nn"
+MODULE = synthetic_class.COMPAT
+KEY_LINE = synthetic_class.LAB8_LINE
+BATCH = ["correct", "helper", "untouched", "empty", "notazip", "syntax", "missing", "crash", "malicious", "deletes",
+         "wrong_rows", "traversal", "loud", "windows"]
 
 
 def key_source() -> str:
-    text = (ROOT / MODULE).read_text(encoding="utf-8")
-    assert KEY_LINE in text, "the answer key's line this test plants bugs into has changed"
-    return text
+    return (ROOT / MODULE).read_text(encoding="utf-8")
 
 
 def make_zip(path: pathlib.Path, files: dict) -> pathlib.Path:
@@ -66,12 +74,51 @@ def test_read_modules_reports_missing_unparsable_and_not_a_zip(tmp_path):
         submission_files.read_modules(tmp_path / "t.zip", [MODULE])
 
 
-def test_the_grading_process_gets_no_secrets_of_the_instructors_shell(tmp_path, monkeypatch):
+def test_the_grading_process_gets_no_secrets_and_its_own_home(tmp_path, monkeypatch):
     monkeypatch.setenv("GITHUB_TOKEN", "secret")
     monkeypatch.setenv("PYTEST_ADDOPTS", "-p conftest_of_somebody")
-    env = grading_tree.grader_env(tmp_path)
+    (tmp_path / "tree").mkdir()
+    env = grading_tree.grader_env(tmp_path / "tree")
     assert "GITHUB_TOKEN" not in env and "PYTEST_ADDOPTS" not in env
-    assert env["PYTHONPATH"] == str(tmp_path) and "PATH" in env
+    assert env["PYTHONPATH"] == str(tmp_path / "tree") and "PATH" in env
+    assert env["HOME"] == str(tmp_path / "home") and env["TMPDIR"] == str(tmp_path / "tmp")
+
+
+def test_scores_are_per_group_and_a_group_needs_all_its_checks():
+    ex = {"name": "ex", "points": 3, "hints": {"test_b": "look at b"},
+          "groups": {"one": {"title": "one", "points": 1, "tests": ["test_a"]},
+                     "two": {"title": "two", "points": 2, "tests": ["test_b", "test_c"]}}}
+    path = "tests/exercises/test_ex.py::"
+    outcomes = {path + "test_a": "passed", path + "test_b[0]": "passed", path + "test_b[1]": "failed",
+                "tests/exercises/test_ex_hidden.py::test_c": "passed",
+                "tests/exercises/test_other.py::test_b": "passed"}
+    failures = {"tests/exercises/test_ex.py::test_b[1]": {"title": "the b check", "text": "expected: 1\nactual: 2"}}
+    groups = grading_tree.score_groups(ex, outcomes, ROOT, failures=failures)
+    assert [(g["score"], g["failed"]) for g in groups] == [(1.0, []), (0.0, ["test_b"])]
+    assert "the b check" in groups[1]["output"] and "actual: 2" in groups[1]["output"]
+    assert "look at b" in groups[1]["output"]
+    del outcomes[path + "test_a"]                  # a check that did not run
+    assert grading_tree.score_groups(ex, outcomes, ROOT)[0]["score"] == 0.0
+    assert [g["score"] for g in grading_tree.score_groups(ex, {}, ROOT, reason="time limit")] == [0.0, 0.0]
+
+
+def test_the_guard_stops_changes_outside_the_work_folder_and_new_programs(tmp_path):
+    work, outside = tmp_path / "work", tmp_path / "outside.txt"
+    work.mkdir()
+    outside.write_text("keep", encoding="utf-8")
+    script = work / "attempt.py"
+    script.write_text(
+        "import os, pathlib, shutil, subprocess\n"
+        "def attempt(f):\n    try:\n        f()\n        return 'done'\n    except PermissionError:\n"
+        "        return 'stopped'\n"
+        "print(attempt(lambda: os.remove(%r)), attempt(lambda: open(%r, 'a')),\n"
+        "      attempt(lambda: shutil.rmtree(%r)), attempt(lambda: subprocess.run(['python', '-V'])),\n"
+        "      attempt(lambda: pathlib.Path('inside.txt').write_text('x')), open(%r).read())\n"
+        % (str(outside), str(outside), str(tmp_path), str(outside)), encoding="utf-8")
+    out = subprocess.run([sys.executable, str(ROOT / "tools" / "grade_guard.py"), str(work), str(script)],
+                         cwd=str(work), capture_output=True, text=True, timeout=60)
+    assert out.stdout.split() == ["stopped", "stopped", "stopped", "stopped", "done", "keep"], out.stderr
+    assert outside.read_text(encoding="utf-8") == "keep" and (work / "inside.txt").exists()
 
 
 def test_numba_cache_is_copied_only_for_unchanged_modules(tmp_path):
@@ -108,6 +155,31 @@ def test_merge_takes_bodies_and_added_helpers_only(tmp_path):
     assert "no function f" in problems["ex_f"] and "ex_g" not in problems
 
 
+def test_gradescope_results_hide_the_hidden_groups_until_published():
+    groups = [{"title": "public", "points": 1.0, "score": 1.0, "hidden": False, "output": ""},
+              {"title": "values", "points": 2.0, "score": 0.0, "hidden": True, "output": "expected: 3"}]
+    result = {"groups": {EX: groups}, "reasons": {}, "possible": 3.0, "answers": []}
+    data = gradescope.results_json(result, [{"name": EX}])
+    assert [(t["score"], t["max_score"], t["visibility"]) for t in data["tests"]] == [
+        (1.0, 1.0, "visible"), (0.0, 2.0, "after_published")]
+    assert "1 of 1" in data["output"] and "expected: 3" not in data["output"]
+
+
+@pytest.mark.skipif(os.name == "nt", reason="symbolic links need extra rights on Windows; Gradescope runs Linux")
+def test_a_folder_upload_is_packed_without_following_links(tmp_path):
+    upload = tmp_path / "submission"
+    (upload / "helpers" / "association").mkdir(parents=True)
+    (upload / "helpers" / "association" / "compatibility.py").symlink_to(ROOT / MODULE)
+    (upload / "helpers" / "features.py").write_text("x = 1\n", encoding="utf-8")
+    (upload / "notes.txt").write_text("n", encoding="utf-8")
+    packed = gradescope.submission_zip(upload, tmp_path)
+    assert zipfile.ZipFile(packed).namelist() == ["helpers/features.py"]
+    single = tmp_path / "single"
+    single.mkdir()
+    make_zip(single / "mine.zip", {"helpers/features.py": "x = 1\n"})
+    assert gradescope.submission_zip(single, tmp_path) == single / "mine.zip"
+
+
 def test_parse_blocks_splits_the_graders_report():
     text = ("lab8_2a_individual_compatibility   FAILED    1 of 6 checks failed\n  ✗ the gate (test_gate)\n"
             "      expected: 1\n    hint: h\nl09_jcbb   passed    (3 checks)\nexercises: 1 passed, 1 failed\n")
@@ -123,9 +195,10 @@ def edition(tmp_path_factory) -> pathlib.Path:
 
 
 @pytest.fixture(scope="module")
-def edition_stub(edition) -> str:
-    """The student edition's (untouched) module file."""
-    return (edition / MODULE).read_text(encoding="utf-8")
+def synthetic(tmp_path_factory, edition) -> tuple[pathlib.Path, dict]:
+    """The 20 zips of tools/synthetic_class.py with their designed scores for lab8_2a alone."""
+    folder = tmp_path_factory.mktemp("class") / "all"
+    return folder, synthetic_class.write_class(folder, edition, only=[EX])
 
 
 def answered_notebook(edition) -> tuple[str, str, str]:
@@ -140,83 +213,108 @@ def answered_notebook(edition) -> tuple[str, str, str]:
 
 
 @pytest.fixture(scope="module")
-def batch(tmp_path_factory, edition, edition_stub):
+def batch(tmp_path_factory, edition, synthetic):
+    folder, design = synthetic
     subs = tmp_path_factory.mktemp("submissions")
-    key = key_source()
-    wrong = key.replace(KEY_LINE, KEY_LINE.replace("[2 * j, 2 * j + 1]", "[j, j + 1]"))
-    helper = key.replace(KEY_LINE, "    return _gate_of(density, Y, i, j, n_sigma)\n") + (
-        "\n\ndef _gate_of(density, Y, i, j, n_sigma):\n"
-        "    return density.marginal([2 * j, 2 * j + 1]).is_within_confidence_region(Y[:, i], n_sigma)\n")
-    forcing = ("import pytest\n\n@pytest.hookimpl(hookwrapper=True)\ndef pytest_runtest_makereport(item, call):\n"
-               "    outcome = yield\n    rep = outcome.get_result()\n    rep.outcome = 'passed'\n")
+    for name in BATCH:
+        shutil.copy2(folder / ("%s.zip" % name), subs)
     notebook, _, answered = answered_notebook(edition)
-    make_zip(subs / "correct.zip", {MODULE: key, "notebooks/03_compatibility.ipynb": "{}", notebook: answered})
-    make_zip(subs / "wrong.zip", {MODULE: wrong})
-    make_zip(subs / "untouched.zip", {MODULE: edition_stub})
-    make_zip(subs / "helper.zip", {"./" + MODULE: helper})
-    make_zip(subs / "malicious.zip", {
-        MODULE: wrong, "tests/conftest.py": forcing, "conftest.py": forcing,
-        "tests/exercises/test_%s.py" % EX: "def test_ok():\n    pass\n",
-        "tools/grade.py": "print('%s passed (1 checks)')\n" % EX,
-        "../../outside.py": "x = 1\n", "/tmp/absolute_grade_all.py": "x = 1\n"})
-    unparsable = key.replace("def individual_compatibility(", "def individual_compatibility((")
-    make_zip(subs / "syntax.zip", {MODULE: unparsable})
-    make_zip(subs / "missing.zip", {"notebooks/03_compatibility.ipynb": "{}"})
-    (subs / "notazip.zip").write_text("this is not a zip file", encoding="utf-8")
+    with zipfile.ZipFile(subs / "correct.zip", "a") as zf:
+        zf.writestr(notebook, answered)
     seen = []
     out = tmp_path_factory.mktemp("graded")
     results = grade_all.grade_all(subs, out, jobs=2, timeout_per_submission=240, only=[EX],
                                   progress=lambda done, total, r: seen.append((done, total, r["student"])))
-    return out, {r["student"]: r for r in results}, seen
+    return out, {r["student"]: r for r in results}, seen, design
 
 
 def test_batch_scores_every_submission_as_designed(batch):
-    out, results, seen = batch
-    expected = {"correct": 1, "helper": 1, "wrong": 0, "untouched": 0, "malicious": 0, "syntax": 0, "missing": 0,
-                "notazip": 0}
-    assert {s: r["total"] for s, r in results.items()} == expected
-    assert sorted(s for _, _, s in seen) == sorted(expected) and seen[-1][:2] == (8, 8)
+    out, results, seen, design = batch
+    assert {s: r["total"] for s, r in results.items()} == {s: design[s][0] for s in BATCH}
+    assert {s: design[s][0] for s in ("correct", "malicious", "untouched")} == {"correct": 5, "malicious": 2,
+                                                                                "untouched": 0}
+    assert sorted(s for _, _, s in seen) == sorted(BATCH) and seen[-1][:2] == (len(BATCH), len(BATCH))
     rows = (out / "grades.csv").read_text(encoding="utf-8").splitlines()
     assert rows[0] == "student,%s,total" % EX
-    assert "correct,1,1" in rows and "malicious,0,0" in rows and len(rows) == 9
+    assert "correct,5,5" in rows and "malicious,2,2" in rows and len(rows) == len(BATCH) + 1
 
 
-def test_feedback_gives_the_reason(batch):
-    out, _, _ = batch
+def test_feedback_gives_the_reason_the_groups_and_every_failed_check(batch):
+    out = batch[0]
     feedback = {p.stem: p.read_text(encoding="utf-8") for p in (out / "feedback").glob("*.txt")}
-    assert len(feedback) == 8
-    assert "not a readable zip" in feedback["notazip"]
-    assert "has no file %s" % MODULE in feedback["missing"]
+    assert sorted(feedback) == sorted(BATCH)
+    assert "not a readable zip" in feedback["notazip"] and "has no file %s" % MODULE in feedback["empty"]
     assert "does not parse as Python" in feedback["syntax"]
     assert "not written yet" in feedback["untouched"]
-    assert "FAILED" in feedback["wrong"] and "hint:" in feedback["wrong"]
-    assert "passed" in feedback["correct"] and "score: 1 of 1" in feedback["correct"]
-    assert "FAILED" in feedback["malicious"]               # its conftest.py, tests and grade.py were not used
-    assert not (out.parent / "outside.py").exists() and not pathlib.Path("/tmp/absolute_grade_all.py").exists()
+    assert "ZeroDivisionError" in feedback["crash"] and "raised at helpers" in feedback["crash"]
+    wrong = feedback["wrong_rows"]
+    assert "score: 2 of 5" in wrong and "✗ landmark j's own rows" in wrong and "✓ a plain bool" in wrong
+    assert "[hidden]" in wrong and wrong.count("hint:") >= 3 and "actual" in wrong
+    assert "score: 5 of 5" in feedback["correct"] and "score: 5 of 5" in feedback["loud"]
+    assert "score: 2 of 5" in feedback["malicious"]        # its conftest.py, tests and grade.py were not used
+    assert "PermissionError" in feedback["deletes"] and "outside the submission's folder" in feedback["deletes"]
+    assert len(feedback["loud"]) < 2 * grading_tree.MAX_OUTPUT_CHARS
 
 
-def test_a_hang_scores_zero_with_time_limit_and_the_other_exercise_is_graded(tmp_path):
-    """lab8_2a hangs, lab8_2c (same file) is the answer key's: the run of both hits the limit, each runs again
-    alone, and only lab8_2a scores 0 (about 35 s: the first limit, the hang's own limit, lab8_2c's run)."""
-    hang = key_source().replace(KEY_LINE, "    while True:\n        pass\n")
-    path = make_zip(tmp_path / "hang.zip", {MODULE: hang})
-    tree = grading_tree.build_grading_tree(tmp_path / "tree")
-    result = grade_all.grade_submission(path, tree, student.load_registry(), timeout=5, timeout_per_exercise=20,
-                                        only=[EX, OTHER])
-    assert result["scores"] == {EX: 0, OTHER: 1}
-    assert grade_all.TIME_LIMIT in result["reasons"][EX] and OTHER not in result["reasons"]
-    assert "passed" in result["feedback"] and json.dumps(result)      # plain data (what a worker hands back)
+def test_nothing_outside_the_grading_folders_was_touched(batch, synthetic):
+    folder = synthetic[0]
+    assert (folder.parent / "SENTINEL").exists()            # the deleting submission's target
+    assert not (batch[0].parent / "outside_grading.py").exists()
+    assert not pathlib.Path("/tmp/absolute_grading.py").exists()
+
+
+def test_a_python_hang_hits_the_check_time_limit_and_costs_only_its_exercise(synthetic):
+    tree = grading_tree.build_grading_tree(synthetic[0].parent / "tree-hang")
+    result = grade_all.grade_submission(synthetic[0] / "hang.zip", tree, student.load_registry(), timeout=120,
+                                        only=[NN, EX], test_limit=3, with_answers=False)
+    assert result["scores"] == {NN: 0, EX: 5}
+    assert "time limit: a check ran longer than 3 s" in result["reasons"][NN] and EX not in result["reasons"]
+    assert result["seconds"] < 60
+
+
+def test_a_hang_in_c_code_hits_the_submission_limit_and_the_rest_is_graded(synthetic):
+    """No signal gets through sum(range(10**15)): the run of both exercises is killed at 5 s, each runs alone."""
+    tree = grading_tree.build_grading_tree(synthetic[0].parent / "tree-hang-c")
+    result = grade_all.grade_submission(synthetic[0] / "hang_c.zip", tree, student.load_registry(), timeout=5,
+                                        timeout_per_exercise=20, only=[NN, EX], with_answers=False)
+    assert result["scores"] == {NN: 0, EX: 5}
+    assert grade_all.TIME_LIMIT in result["reasons"][NN] and EX not in result["reasons"]
+    assert json.dumps(result)                                 # plain data (what a worker hands back)
 
 
 def test_written_answers_are_collected_by_the_answer_keys_cell_ids(batch, edition):
-    out, results, _ = batch
+    out, results, _, _ = batch
     notebook, cell, _ = answered_notebook(edition)
     answers = json.loads((out / "answers" / "correct.json").read_text(encoding="utf-8"))
     assert len(answers) == len(submission_files.answer_cells())
     mine = next(a for a in answers if a["cell"] == cell)
     assert mine["status"] == "answered" and mine["answer"] == "My answer: the vectorised gate." and mine["question"]
-    same_notebook = [a["status"] for a in answers if a["notebook"] == notebook and a["cell"] != cell]
-    assert set(same_notebook) <= {"unanswered"}
     assert {a["status"] for a in answers if a["notebook"] != notebook} == {"missing"}
     assert "written answers (marked by hand): 1 of" in results["correct"]["feedback"]
     assert {a["status"] for a in results["notazip"]["answers"]} == {"missing"}
+
+
+@pytest.mark.skipif(os.name == "nt", reason="run_autograder is a bash script: Gradescope runs Linux")
+def test_the_gradescope_autograder_gives_grade_alls_scores(tmp_path, batch, synthetic):
+    """The zip is unpacked into a folder laid out like /autograder and its run_autograder grades the correct
+    submission (all exercises); the wrong one, uploaded as a folder, is graded for lab8_2a as grade-all did."""
+    ag = tmp_path / "autograder"
+    with zipfile.ZipFile(gradescope.build(tmp_path / "autograder.zip")) as zf:
+        zf.extractall(ag / "source")
+        assert {"setup.sh", "run_autograder", "requirements.txt"} <= set(zf.namelist())
+    (ag / "submission").mkdir()
+    shutil.copy2(synthetic[0] / "correct.zip", ag / "submission")
+    env = dict(os.environ, AUTOGRADER_ROOT=str(ag), AUTOGRADER_PYTHON=sys.executable)
+    subprocess.run(["bash", str(ag / "source" / "run_autograder")], env=env, check=True, timeout=600,
+                   capture_output=True)
+    data = json.loads((ag / "results" / "results.json").read_text(encoding="utf-8"))
+    assert sum(t["score"] for t in data["tests"]) == sum(t["max_score"] for t in data["tests"]) == 84
+    assert {t["visibility"] for t in data["tests"] if "hidden" in t["name"] or "[hidden]" in t["output"]} <= {
+        "after_published"}
+    hidden = [g["hidden"] for ex in student.load_registry()["exercise"] for g in grading_tree.groups_of(ex)]
+    assert [t["visibility"] == "after_published" for t in data["tests"]] == hidden and sum(hidden) >= 15
+    shutil.rmtree(ag / "submission")
+    with zipfile.ZipFile(synthetic[0] / "wrong_rows.zip") as zf:
+        zf.extractall(ag / "submission")
+    data = gradescope.run(ag, only=[EX])
+    assert sum(t["score"] for t in data["tests"]) == batch[1]["wrong_rows"]["total"] == 2

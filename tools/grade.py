@@ -19,7 +19,8 @@ produce come from recorded fixtures), so every exercise is graded on its own, in
 then ``exercises: N passed, M failed``. Hints come from the registry (``tools/exercises.toml``, ``hints``: one per
 test function). Exit status: 0 when every graded exercise passed, else 1; with ``--student-ok`` (the student
 edition's ``make test``) 0 unless the grading itself broke. ``--status FILE`` writes the passed exercises and each
-test's outcome as JSON (``{"passed": [NAME, ...], "tests": {nodeid: "passed" | "failed" | "skipped"}}``); ``--all``
+test's outcome as JSON (``{"passed": [NAME, ...], "tests": {nodeid: "passed" | "failed" | "skipped"}, "failures":
+{nodeid: {"title", "text"}}, "time_limit": [NAME, ...]}``); ``--all``
 prints every failed check (the instructor's feedback) instead of the first three; ``--timeout S`` is the time limit
 of one check (default 120 s; pytest-timeout: a check that runs longer fails with "time limit", the others go on);
 ``--verbose`` shows pytest's own output. ``--isolate`` (one exercise, in the answer key) first swaps the code
@@ -233,7 +234,9 @@ def main(argv=None) -> int:
         tests = dict(collector.outcome)
         tests.update({nodeid: "failed" for nodeid, _ in collector.errors})
         pathlib.Path(status_file).parent.mkdir(parents=True, exist_ok=True)
-        status = {"passed": passed, "tests": tests, "time_limit": sorted(collector.time_limit)}
+        failures = {n: {"title": collector.doc.get(n, ""), "text": collector.failure.get(n, "failed")}
+                    for n, o in tests.items() if o == "failed"}
+        status = {"passed": passed, "tests": tests, "failures": failures, "time_limit": sorted(collector.time_limit)}
         pathlib.Path(status_file).write_text(json.dumps(status), encoding="utf-8")
     if code not in (0, 1, 5):
         return 1

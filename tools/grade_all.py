@@ -64,15 +64,17 @@ def grade_submission(zip_path, grading_tree_dir, reg: dict, timeout: float = 600
     except ValueError as err:
         sources, problems = None, {}
         reasons = {n: str(err) for n in names}
-    outcomes, output, elapsed = {}, "", 0.0
+    (outcomes, failures), output, elapsed = ({}, {}), "", 0.0
     if sources is not None:
         for name, targets in files.items():
             bad = [problems[r] for r, _ in targets if r in problems]
             if bad:
                 reasons[name] = "; ".join(dict.fromkeys(bad))
-        outcomes, output, elapsed = _grade_in_copy(zip_path, grading_tree_dir, sources, files, names, reasons,
-                                                   (timeout, timeout_per_exercise, test_limit), root)
-    groups = {ex["name"]: grading_tree.score_groups(ex, outcomes, root, reasons.get(ex["name"])) for ex in exercises}
+        limits = (timeout, timeout_per_exercise, test_limit)
+        (outcomes, failures), output, elapsed = _grade_in_copy(zip_path, grading_tree_dir, sources, files, names,
+                                                               reasons, limits, root)
+    groups = {ex["name"]: grading_tree.score_groups(ex, outcomes, root, reasons.get(ex["name"]), failures)
+              for ex in exercises}
     scores = {n: sum(g["score"] for g in groups[n]) for n in names}
     answers = submission_files.read_answers(zip_path, submission_files.answer_cells(root)) if with_answers else []
     result = {"student": zip_path.stem, "scores": scores, "total": sum(scores.values()),
@@ -85,13 +87,14 @@ def grade_submission(zip_path, grading_tree_dir, reg: dict, timeout: float = 600
 def _grade_in_copy(zip_path, grading_tree_dir, sources, files, names, reasons, limits, root) -> tuple:
     """Copy the grading tree, merge the student's work into it and run the grader: one run for all exercises; when
     it hangs or dies with several exercises unreported, each of those runs again alone (a hang costs only its own
-    exercise). Adds to ``reasons``; returns (test outcomes, the grader's output, seconds)."""
+    exercise). Adds to ``reasons``; returns ((test outcomes, failure texts), the grader's output, seconds)."""
     timeout, timeout_per_exercise, test_limit = limits
     work = pathlib.Path(tempfile.mkdtemp(prefix="grade-%s-" % re.sub(r"\W", "_", zip_path.stem)[:40]))
-    outcomes, outputs = {}, []
+    outcomes, failures, outputs = {}, {}, []
     try:
         tree = work / "tree"
         shutil.copytree(grading_tree_dir, tree, ignore=shutil.ignore_patterns("*.pyc", ".pytest_cache"))
+        grading_tree.set_read_only(tree, False)
         for name, reason in submission_files.merge_submission(tree, sources, files, root).items():
             reasons.setdefault(name, reason)
         to_run = [n for n in names if n not in reasons]
@@ -103,6 +106,7 @@ def _grade_in_copy(zip_path, grading_tree_dir, sources, files, names, reasons, l
             outputs.append(text.rstrip("\n"))
             if status:
                 outcomes.update(status["tests"])
+                failures.update(status["failures"])
                 for name in status.get("time_limit", []):
                     reasons.setdefault(name, "%s: a check ran longer than %g s" % (TIME_LIMIT, test_limit))
             reported = parse_blocks(text, group) if status else {}
@@ -116,7 +120,7 @@ def _grade_in_copy(zip_path, grading_tree_dir, sources, files, names, reasons, l
                 outputs.append("(%s: grading each unreported exercise alone)" % (
                     TIME_LIMIT if timed_out else "the grader stopped early"))
                 queue += [([n], timeout_per_exercise) for n in again]
-        return outcomes, "\n".join(outputs), time.perf_counter() - start
+        return (outcomes, failures), "\n".join(outputs), time.perf_counter() - start
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
@@ -201,6 +205,7 @@ def grade_all(submissions_dir, out_dir, jobs: int = 2, timeout_per_submission: f
     results = []
     try:
         tree = grading_tree.build_grading_tree(work / "grading-tree", root)
+        grading_tree.set_read_only(tree, True)
 
         def one(path):
             try:
@@ -220,6 +225,7 @@ def grade_all(submissions_dir, out_dir, jobs: int = 2, timeout_per_submission: f
                 if progress:
                     progress(len(results), len(submissions), results[-1])
     finally:
+        grading_tree.set_read_only(work, False)
         shutil.rmtree(work, ignore_errors=True)
     write_results(out_dir, results, names)
     return results

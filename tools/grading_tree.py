@@ -38,7 +38,7 @@ def build_grading_tree(dest, root=ROOT) -> pathlib.Path:
     student.build(dest, root=root, quiet=True)
     hidden = list((root / "tests" / "exercises").glob("test_*_hidden.py"))
     hidden += list((root / "tests" / "exercises" / "fixtures").glob("*_hidden.npz"))
-    for path in hidden + [root / "tools" / "grade.py", root / "tools" / "exercises.toml"]:
+    for path in hidden + [root / "tools" / name for name in ("grade.py", "grade_guard.py", "exercises.toml")]:
         rel = path.relative_to(root)
         (dest / rel).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(path, dest / rel)
@@ -74,13 +74,15 @@ def copy_numba_cache(src_root, tree) -> int:
 def run_grader(tree: pathlib.Path, names, timeout: float,
                test_limit: float = TEST_TIME_LIMIT) -> tuple[str, dict | None, bool]:
     """Run the tree's tools/grade.py on ``names`` (every failed check shown, ``test_limit`` seconds per check) in
-    its own process and session, killed whole after ``timeout`` seconds. Returns (its output, capped; its --status
+    its own process and session, killed whole after ``timeout`` seconds, under tools/grade_guard.py (no file
+    changed outside ``tree``'s parent, the submission's work folder). Returns (its output, capped; its --status
     JSON ``{"passed": [...], "tests": {nodeid: outcome}}`` or None when it wrote none; whether it timed out)."""
     status = tree / ".grade-status.json"
     status.unlink(missing_ok=True)
     with tempfile.TemporaryFile() as out:
-        proc = subprocess.Popen([sys.executable, "tools/grade.py", *names, "--all", "--timeout", "%g" % test_limit,
-                                 "--status", str(status)], cwd=str(tree), env=grader_env(tree), stdout=out,
+        command = [sys.executable, "tools/grade_guard.py", str(tree.parent), "tools/grade.py", *names, "--all",
+                   "--timeout", "%g" % test_limit, "--status", str(status)]
+        proc = subprocess.Popen(command, cwd=str(tree), env=grader_env(tree), stdout=out,
                                 stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 start_new_session=(os.name == "posix"))
         timed_out = False
@@ -98,26 +100,41 @@ def run_grader(tree: pathlib.Path, names, timeout: float,
         try:
             result = json.loads(status.read_text(encoding="utf-8"))
             result = {"passed": list(result.get("passed", [])), "tests": dict(result.get("tests", {})),
-                      "time_limit": list(result.get("time_limit", []))}
+                      "failures": dict(result.get("failures", {})), "time_limit": list(result.get("time_limit", []))}
         except (ValueError, AttributeError, TypeError):
             result = None
     return text, result, timed_out
 
 
-KEPT_ENV = {"PATH", "HOME", "USERPROFILE", "LANG", "TMP", "TEMP", "TMPDIR", "SYSTEMROOT", "SYSTEMDRIVE", "COMSPEC",
-            "VIRTUAL_ENV", "CI"}
+KEPT_ENV = {"PATH", "LANG", "SYSTEMROOT", "SYSTEMDRIVE", "COMSPEC", "VIRTUAL_ENV", "CI"}
 KEPT_ENV_PREFIXES = ("LC_", "NUMBA_", "OMP_", "MKL_", "OPENBLAS_")
 
 
 def grader_env(tree: pathlib.Path) -> dict:
     """The grading process's environment: only what Python, numpy and numba need (no tokens or other settings of
     the instructor's shell reach the student's code), one BLAS thread per worker unless set, PYTHONPATH at the
-    tree."""
+    tree, and the home and temporary folders inside the submission's work folder (``tree/..``), so code that
+    writes or deletes under ``~`` or the temporary folder touches only its own copy."""
     env = {k: v for k, v in os.environ.items() if k in KEPT_ENV or k.startswith(KEPT_ENV_PREFIXES)}
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         env.setdefault(var, "1")
-    env.update(PYTHONPATH=str(tree), PYTHONIOENCODING="utf-8", MPLBACKEND="Agg", PYTHONDONTWRITEBYTECODE="1")
+    home, tmp = pathlib.Path(tree).parent / "home", pathlib.Path(tree).parent / "tmp"
+    home.mkdir(exist_ok=True)
+    tmp.mkdir(exist_ok=True)
+    env.update(PYTHONPATH=str(tree), PYTHONIOENCODING="utf-8", MPLBACKEND="Agg", PYTHONDONTWRITEBYTECODE="1",
+               HOME=str(home), USERPROFILE=str(home), TMPDIR=str(tmp), TMP=str(tmp), TEMP=str(tmp),
+               MPLCONFIGDIR=str(home / ".matplotlib"))
     return env
+
+
+def set_read_only(path: pathlib.Path, read_only: bool) -> None:
+    """Make every file and folder under ``path`` read-only (or writable again for its owner): the shared grading
+    tree is read-only while submissions are graded (POSIX permissions; a no-op for folders on Windows)."""
+    for p in [pathlib.Path(path), *pathlib.Path(path).rglob("*")]:
+        if p.is_symlink():
+            continue
+        mode = p.stat().st_mode
+        p.chmod(mode & ~0o222 if read_only else mode | 0o200)
 
 
 def _kill(proc) -> None:
@@ -157,20 +174,30 @@ def points_of(ex: dict) -> float:
     return float(ex.get("points", 1))
 
 
-def score_groups(ex: dict, outcomes: dict, root=ROOT, reason: str | None = None) -> list[dict]:
+def score_groups(ex: dict, outcomes: dict, root=ROOT, reason: str | None = None, failures=None) -> list[dict]:
     """Each group of ``ex`` with its score: ``outcomes`` = {pytest node id: "passed" | "failed" | "skipped"} of the
     grading run; a group scores its points when each of its test functions ran and every run of it (each
     parametrisation) passed. ``reason`` (the exercise could not be graded) scores every group 0.
-    Adds "score" and "failed" (the test functions that did not pass) to each group."""
-    by_func = {}
+    Adds "score", "failed" (the test functions that did not pass) and "output" (what failed: each check's title,
+    its message from ``failures`` = {node id: {"title", "text"}}, and the registry's hint) to each group."""
+    by_func, texts = {}, {}
     for nodeid, outcome in outcomes.items():
         path, _, rest = nodeid.partition("::")
         stem = pathlib.PurePosixPath(path).stem
         if stem in ("test_%s" % ex["name"], "test_%s_hidden" % ex["name"]):
-            by_func.setdefault(rest.split("[")[0], []).append(outcome)
+            func = rest.split("[")[0]
+            by_func.setdefault(func, []).append(outcome)
+            if (failures or {}).get(nodeid):
+                texts.setdefault(func, failures[nodeid])
+    hints = ex.get("hints", {})
     out = []
     for group in groups_of(ex, root):
         failed = [t for t in group["tests"] if reason or not by_func.get(t)
                   or any(o != "passed" for o in by_func[t])]
-        out.append(dict(group, failed=failed, score=0.0 if failed else group["points"]))
+        lines = [reason] if reason else []
+        for func in [] if reason else failed:
+            info = texts.get(func) or {"title": func, "text": "did not run (skipped after an earlier failure)"}
+            lines += ["✗ %s (%s)" % (info["title"] or func, func), "    " + info["text"].replace("\n", "\n    ")]
+            lines += ["  hint: " + " ".join(hints[func].split())] if func in hints else []
+        out.append(dict(group, failed=failed, score=0.0 if failed else group["points"], output="\n".join(lines)))
     return out

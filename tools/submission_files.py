@@ -17,6 +17,7 @@ import shutil
 import sys
 import tempfile
 import zipfile
+import zlib
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import student  # noqa: E402  (the answer key's builder: registry, ast helpers)
@@ -79,7 +80,7 @@ def read_modules(zip_path: pathlib.Path, wanted) -> tuple[dict, dict]:
             except SyntaxError as err:
                 problems[rel] = "%s does not parse as Python: %s (line %s)" % (rel, err.msg, err.lineno)
                 continue
-            except (UnicodeDecodeError, zipfile.BadZipFile, OSError, RuntimeError, ValueError) as err:
+            except (UnicodeDecodeError, zipfile.BadZipFile, zlib.error, OSError, RuntimeError, ValueError) as err:
                 problems[rel] = "%s cannot be read: %s" % (rel, err)
                 continue
             sources[rel] = text
@@ -87,12 +88,13 @@ def read_modules(zip_path: pathlib.Path, wanted) -> tuple[dict, dict]:
 
 
 def answer_cells(root=ROOT) -> list:
-    """The answer key's answer cells (tag ``answer``): [{"notebook", "cell", "question"}], in notebook order."""
+    """The answer cells of the tree at ``root`` (tag ``answer`` in the answer key, ``student-answer`` in the student
+    edition or a grading tree; same ids): [{"notebook", "cell", "question"}], in notebook order."""
     out = []
     for path in sorted((pathlib.Path(root) / "notebooks").glob("*.ipynb")):
         for cell in json.loads(path.read_text(encoding="utf-8")).get("cells", []):
             meta = cell.get("metadata", {})
-            if "answer" in meta.get("tags", []):
+            if {"answer", "student-answer"} & set(meta.get("tags", [])):
                 out.append({"notebook": "notebooks/" + path.name, "cell": cell.get("id"),
                             "question": " ".join(str(meta.get("question", "")).split())})
     return out
@@ -117,7 +119,7 @@ def read_answers(zip_path: pathlib.Path, wanted: list) -> list:
                             nb = json.loads(fh.read(20 * MAX_FILE_BYTES + 1).decode("utf-8"))
                         notebooks.setdefault(name, {c.get("id"): c for c in nb.get("cells", [])
                                                     if isinstance(c, dict)})
-                    except (ValueError, AttributeError, zipfile.BadZipFile, OSError, RuntimeError):
+                    except (ValueError, AttributeError, zipfile.BadZipFile, zlib.error, OSError, RuntimeError):
                         notebooks.setdefault(name, None)
     except (zipfile.BadZipFile, OSError):
         pass

@@ -7,6 +7,11 @@
     python3 tools/workbook.py clean | distclean
     python3 tools/workbook.py student              # = make student: the student edition in build/student
     python3 tools/workbook.py grade [NAME]         # = make grade [EX=NAME]: grade the exercises
+    python3 tools/workbook.py submission           # = make submission: the student's work in submission.zip
+    python3 tools/workbook.py grade-all SUBMISSIONS_DIR  # grade a folder of submission zips (tools/grade_all.py)
+    python3 tools/workbook.py gradescope           # the Gradescope autograder zip (tools/gradescope.py)
+    python3 tools/workbook.py release TREE NAME... # model solutions / answers into a student tree (tools/release.py)
+    python3 tools/workbook.py answers SUBMISSIONS_DIR  # written answers per question, as HTML for marking
 
 The interpreter that runs this script is checked first (CPython 3.11.5 to 3.13) and is the one the virtual
 environment ``.venv`` is made from. ``.venv`` is (re)created when it is missing, when it was made by another
@@ -392,6 +397,12 @@ TASKS = {
     "student": lambda args: student(),
     "submission": lambda args: run([sys.executable, "tools/submission.py"] + list(args)),
     "grade-all": lambda args: grade_all(args),
+    "gradescope": lambda args: (setup(), run([venv_python(), "tools/gradescope.py", "build"] + list(args),
+                                             env=tool_env())),
+    "release": lambda args: (setup(), run([venv_python(), "tools/release.py", "solutions"] + list(args),
+                                          env=tool_env())),
+    "answers": lambda args: (setup(), run([venv_python(), "tools/release.py", "answers"] + list(args),
+                                          env=tool_env())),
     "grade": lambda args: grade(args),
     "student-check": lambda args: (setup(), run([venv_python(), "tools/student_check.py"], env=tool_env())),
     "clean": lambda args: clean(),
