@@ -37,7 +37,7 @@ import grading_tree  # noqa: E402
 import student  # noqa: E402
 import synthetic_class  # noqa: E402
 
-LIMITS = {"timeout_per_submission": 180, "timeout_per_exercise": 60, "test_limit": 60}   # as on Gradescope
+LIMITS = {"timeout_per_submission": 180, "test_limit": 60}   # as on Gradescope
 
 
 def run_gradescope(autograder_zip: pathlib.Path, zips: list, work: pathlib.Path) -> dict:
@@ -65,7 +65,7 @@ def cpu_of_one(zip_path: pathlib.Path, tree: pathlib.Path) -> tuple[float, float
     """(CPU seconds of the grading processes, wall seconds) of grading one submission alone."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    grade_all.grade_submission(zip_path, tree, student.load_registry(), timeout=180, timeout_per_exercise=60)
+    grade_all.grade_submission(zip_path, tree, student.load_registry(), timeout=180)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), time.perf_counter() - start
 

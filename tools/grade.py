@@ -1,6 +1,7 @@
 """Grade the exercises: run each exercise's own tests and say what failed and why (``make grade [EX=name]``).
 
-    python tools/grade.py [NAME ...] [--student-ok] [--status FILE] [--all] [--timeout S] [--verbose]
+    python tools/grade.py [NAME ...] [--student-ok] [--status FILE] [--all] [--timeout S] [--progress FILE]
+                          [--verbose]
     python tools/grade.py NAME --isolate        # the answer key: every OTHER exercise's targets raise
 
 An exercise ``NAME`` is graded by ``tests/exercises/test_NAME.py`` (the public tests, shipped with the student
@@ -19,11 +20,15 @@ produce come from recorded fixtures), so every exercise is graded on its own, in
 then ``exercises: N passed, M failed``. Hints come from the registry (``tools/exercises.toml``, ``hints``: one per
 test function). Exit status: 0 when every graded exercise passed, else 1; with ``--student-ok`` (the student
 edition's ``make test``) 0 unless the grading itself broke. ``--status FILE`` writes the passed exercises and each
-test's outcome as JSON (``{"passed": [NAME, ...], "tests": {nodeid: "passed" | "failed" | "skipped"}, "failures":
-{nodeid: {"title", "text"}}, "time_limit": [NAME, ...]}``); ``--all``
+test's outcome as JSON (``{"passed": [NAME, ...], "tests": {nodeid: "passed" | "failed" | "skipped"}}``); ``--all``
 prints every failed check (the instructor's feedback) instead of the first three; ``--timeout S`` is the time limit
-of one check (default 120 s; pytest-timeout: a check that runs longer fails with "time limit", the others go on);
-``--verbose`` shows pytest's own output. ``--isolate`` (one exercise, in the answer key) first swaps the code
+of one check (default 120 s; pytest-timeout: a check that runs longer fails with "time limit" and the rest of its
+exercise is skipped); ``--verbose`` shows pytest's own output. ``--progress FILE`` (the instructor's grader,
+tools/grading_tree.py) appends one JSON line per event as it happens (``{"collected": [nodeid, ...]}``, ``{"start":
+nodeid, "time": t}``, ``{"done": nodeid, "outcome", "title", "text"}``, ``{"finished": true, "passed": [...]}``):
+when the grader kills a run that is stuck (in C code no time limit inside the process can stop), the file says
+which check it was and which exercises were graded before it.
+``--isolate`` (one exercise, in the answer key) first swaps the code
 of every other exercise's target functions for a stub that raises ``ExerciseNotImplemented``, as the student
 edition does: the exercise's tests must pass anyway (the check that they need no other exercise).
 """
@@ -35,6 +40,7 @@ import os
 import pathlib
 import re
 import sys
+import time
 import tomllib
 from contextlib import redirect_stderr, redirect_stdout
 
@@ -64,9 +70,24 @@ def exercise_of(nodeid: str) -> str:
 class Collector:
     """pytest plugin: each test's outcome and, for a failure, the text a student can act on."""
 
-    def __init__(self):
+    def __init__(self, progress=None):
         self.outcome, self.failure, self.doc, self.errors = {}, {}, {}, []
         self.time_limit = set()                 # exercises with a check that hit the time limit
+        self.progress = open(progress, "a", encoding="utf-8") if progress else None   # noqa: SIM115 (kept open)
+
+    def log(self, **entry):
+        """One line of JSON in the --progress file, flushed at once (the grader reads it after a kill)."""
+        if self.progress:
+            self.progress.write(json.dumps(entry) + "\n")
+            self.progress.flush()
+
+    def pytest_runtest_logstart(self, nodeid, location):
+        self.log(start=nodeid, time=time.time())
+
+    def pytest_runtest_logfinish(self, nodeid, location):
+        outcome = self.outcome.get(nodeid, "failed")
+        self.log(done=nodeid, outcome=outcome, title=self.doc.get(nodeid, ""),
+                 text=self.failure.get(nodeid, "failed") if outcome == "failed" else "")
 
     def pytest_runtest_setup(self, item):
         if exercise_of(item.nodeid) in self.time_limit:     # one endless loop costs one time limit, not one per check
@@ -78,6 +99,7 @@ class Collector:
         for item in items:
             doc = (getattr(item, "function", None).__doc__ or "") if hasattr(item, "function") else ""
             self.doc[item.nodeid] = " ".join(doc.split()).split(". ")[0].rstrip(".")
+        self.log(collected=[item.nodeid for item in items])
 
     def pytest_collectreport(self, report):
         if report.failed:
@@ -207,6 +229,7 @@ def report(collector, exercises, shown=3) -> list[str]:
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     status_file = argv.pop(argv.index("--status") + 1) if "--status" in argv else None
+    progress = argv.pop(argv.index("--progress") + 1) if "--progress" in argv else None
     try:
         time_limit = float(argv.pop(argv.index("--timeout") + 1)) if "--timeout" in argv else TEST_TIME_LIMIT
     except (IndexError, ValueError):
@@ -221,7 +244,7 @@ def main(argv=None) -> int:
         return 2
     graded = [ex for ex in exercises if not names or ex["name"] in names]
     files = [f for ex in graded for f in test_files(ex["name"])]
-    collector = Collector()
+    collector = Collector(progress)
     if "--isolate" in argv:
         if len(graded) != 1:
             print("--isolate grades one exercise at a time")
@@ -230,14 +253,12 @@ def main(argv=None) -> int:
         print("isolation: %d targets of other exercises raise" % isolate(graded[0]["name"], exercises))
     code = run_tests(files, collector, verbose="--verbose" in argv, time_limit=time_limit) if files else 5
     passed = report(collector, graded, shown=None if "--all" in argv else 3)
+    collector.log(finished=True, passed=passed)
     if status_file:
         tests = dict(collector.outcome)
         tests.update({nodeid: "failed" for nodeid, _ in collector.errors})
         pathlib.Path(status_file).parent.mkdir(parents=True, exist_ok=True)
-        failures = {n: {"title": collector.doc.get(n, ""), "text": collector.failure.get(n, "failed")}
-                    for n, o in tests.items() if o == "failed"}
-        status = {"passed": passed, "tests": tests, "failures": failures, "time_limit": sorted(collector.time_limit)}
-        pathlib.Path(status_file).write_text(json.dumps(status), encoding="utf-8")
+        pathlib.Path(status_file).write_text(json.dumps({"passed": passed, "tests": tests}), encoding="utf-8")
     if code not in (0, 1, 5):
         return 1
     if "--student-ok" in argv:

@@ -1,7 +1,6 @@
 """Grade a class: every submission zip in a folder, each in its own clean copy of the answer key's grading tree.
 
-    python tools/grade_all.py SUBMISSIONS_DIR [--out DIR] [--jobs N] [--timeout S] [--timeout-exercise S]
-                              [--timeout-test S] [--only EX ...]
+    python tools/grade_all.py SUBMISSIONS_DIR [--out DIR] [--jobs N] [--timeout S] [--timeout-test S] [--only EX ...]
 
 Per submission (``<student id>.zip`` from ``make submission``):
 
@@ -9,9 +8,11 @@ Per submission (``<student id>.zip`` from ``make submission``):
    registry) is built ONCE per batch; each submission gets a copy of it;
 2. only the student's work goes into that copy (tools/submission_files.py: the exercise targets' bodies and the
    helper functions the student added next to them, read as text); nothing else from the zip is used;
-3. the answer key's ``tools/grade.py`` runs in the copy in its own process: a time limit per check (a check that
-   runs longer fails with "time limit" and the rest of that exercise is not run), per submission, and per
-   exercise when a run hangs or dies and each unreported exercise is run again alone; output capped;
+3. the answer key's ``tools/grade.py`` runs in the copy in its own process (tools/grade_guard.py: no file changed
+   outside the copy's folder), output capped, with a time limit per check (60 s: a check that runs longer ends
+   the run) and per run (600 s); after a run that ended early, the exercise of the check that was running scores
+   0 with the reason ("time limit", or the crash), the exercises finished before it keep their results, and the
+   others are graded in a new run;
 4. scores per test group (tools/grading_tree.py): a group scores its points when all its checks pass; an exercise
    that hit a time limit, or could not be taken from the zip, scores 0 with the reason.
 
@@ -48,12 +49,11 @@ TIME_LIMIT = "time limit"
 
 # ---------------------------------------------------------------------------------------------- one submission
 def grade_submission(zip_path, grading_tree_dir, reg: dict, timeout: float = 600, only=None, root=ROOT,
-                     timeout_per_exercise: float = 120, with_answers: bool = True,
-                     test_limit: float = TEST_TIME_LIMIT) -> dict:
+                     with_answers: bool = True, test_limit: float = TEST_TIME_LIMIT) -> dict:
     """Grade one submission; {"student", "scores": {ex: points}, "total", "possible", "reasons": {ex: why it scored
     0}, "groups": {ex: score_groups()}, "answers": the written answers, "feedback": text, "seconds"}.
-    Never raises for a bad zip. ``timeout``: the first run (all exercises); ``timeout_per_exercise``: each re-run
-    of one exercise after that run hung or died; ``test_limit``: one check."""
+    Never raises for a bad zip. ``timeout``: one grading run (a new run follows only after a run that ended early);
+    ``test_limit``: one check."""
     zip_path = pathlib.Path(zip_path)
     exercises = [ex for ex in reg["exercise"] if not only or ex["name"] in only]
     names = [ex["name"] for ex in exercises]
@@ -70,7 +70,7 @@ def grade_submission(zip_path, grading_tree_dir, reg: dict, timeout: float = 600
             bad = [problems[r] for r, _ in targets if r in problems]
             if bad:
                 reasons[name] = "; ".join(dict.fromkeys(bad))
-        limits = (timeout, timeout_per_exercise, test_limit)
+        limits = (timeout, test_limit)
         (outcomes, failures), output, elapsed = _grade_in_copy(zip_path, grading_tree_dir, sources, files, names,
                                                                reasons, limits, root)
     groups = {ex["name"]: grading_tree.score_groups(ex, outcomes, root, reasons.get(ex["name"]), failures)
@@ -85,10 +85,11 @@ def grade_submission(zip_path, grading_tree_dir, reg: dict, timeout: float = 600
 
 
 def _grade_in_copy(zip_path, grading_tree_dir, sources, files, names, reasons, limits, root) -> tuple:
-    """Copy the grading tree, merge the student's work into it and run the grader: one run for all exercises; when
-    it hangs or dies with several exercises unreported, each of those runs again alone (a hang costs only its own
-    exercise). Adds to ``reasons``; returns ((test outcomes, failure texts), the grader's output, seconds)."""
-    timeout, timeout_per_exercise, test_limit = limits
+    """Copy the grading tree, merge the student's work into it and run the grader on every exercise. When a run
+    ends early (a check over its time limit, a kill at the submission's limit, a crash), the exercise of the check
+    that was running scores 0 with the reason, the exercises it had finished keep their results, and the rest run
+    again in a new process. Adds to ``reasons``; returns ((test outcomes, failure texts), output, seconds)."""
+    timeout, test_limit = limits
     work = pathlib.Path(tempfile.mkdtemp(prefix="grade-%s-" % re.sub(r"\W", "_", zip_path.stem)[:40]))
     outcomes, failures, outputs = {}, {}, []
     try:
@@ -97,32 +98,53 @@ def _grade_in_copy(zip_path, grading_tree_dir, sources, files, names, reasons, l
         grading_tree.set_read_only(tree, False)
         for name, reason in submission_files.merge_submission(tree, sources, files, root).items():
             reasons.setdefault(name, reason)
-        to_run = [n for n in names if n not in reasons]
-        queue = [(to_run, timeout)] if to_run else []
+        queue = [[n for n in names if n not in reasons]]
         start = time.perf_counter()
-        while queue:
-            group, limit = queue.pop(0)
-            text, status, timed_out = grading_tree.run_grader(tree, group, limit, test_limit)
+        while queue and queue[0]:
+            group = queue.pop(0)
+            text, progress, timed_out = grading_tree.run_grader(tree, group, timeout, test_limit)
             outputs.append(text.rstrip("\n"))
-            if status:
-                outcomes.update(status["tests"])
-                failures.update(status["failures"])
-                for name in status.get("time_limit", []):
-                    reasons.setdefault(name, "%s: a check ran longer than %g s" % (TIME_LIMIT, test_limit))
-            reported = parse_blocks(text, group) if status else {}
-            again = [n for n in group if n not in reported] if len(group) > 1 else []
-            for name in set(group) - set(reported) - set(again):
-                if timed_out or "+++ Timeout +++" in text:
-                    reasons.setdefault(name, "%s: grading stopped after %.0f s" % (TIME_LIMIT, limit))
-                else:
-                    reasons.setdefault(name, "the grader reported nothing for it (it crashed; see its output)")
-            if again:
-                outputs.append("(%s: grading each unreported exercise alone)" % (
-                    TIME_LIMIT if timed_out else "the grader stopped early"))
-                queue += [([n], timeout_per_exercise) for n in again]
+            outcomes.update(progress["outcomes"])
+            failures.update(progress["failures"])
+            for nodeid, failure in progress["failures"].items():         # stopped inside the process (Python code)
+                if failure["text"].startswith(TIME_LIMIT):
+                    reasons.setdefault(grading_tree.exercise_of(nodeid), "%s: the check %s ran longer than %g s" % (
+                        TIME_LIMIT, nodeid.split("::")[-1], test_limit))
+            if not progress["finished"]:
+                rest = _after_an_early_end(group, progress, timed_out, limits, reasons)
+                if rest:
+                    outputs.append("(the run ended early: grading %s in a new run)" % ", ".join(rest))
+                    queue.append(rest)
         return (outcomes, failures), "\n".join(outputs), time.perf_counter() - start
     finally:
+        grading_tree.set_read_only(work, False)
         shutil.rmtree(work, ignore_errors=True)
+
+
+def _after_an_early_end(group, progress, timed_out, limits, reasons) -> list:
+    """After a run of ``group`` that ended before its report: give the running check's exercise its reason and
+    return the exercises to run again (none when the run got nowhere: those get a reason too)."""
+    timeout, test_limit = limits
+    running = progress["running"]
+    if running:
+        name = grading_tree.exercise_of(running)
+        if timed_out == "run":
+            why = "%s: grading stopped after %.0f s, in the check %s" % (TIME_LIMIT, timeout, running)
+        elif timed_out == "check" or progress["running_for"] >= 0.9 * test_limit:
+            why = "%s: the check %s ran longer than %g s" % (TIME_LIMIT, running.split("::")[-1], test_limit)
+        else:
+            why = "the grading process died in the check %s (see the grader's report)" % running.split("::")[-1]
+        reasons.setdefault(name, why)
+    collected = progress["collected"]
+    done = {n for n in group if any(grading_tree.exercise_of(c) == n for c in collected)
+            and all(c in progress["outcomes"] for c in collected if grading_tree.exercise_of(c) == n)}
+    rest = [n for n in group if n not in done and n not in reasons]
+    if rest and (running or done):
+        return rest
+    for name in rest:
+        reasons.setdefault(name, "%s: grading stopped after %.0f s" % (TIME_LIMIT, timeout) if timed_out == "run" else
+                           "the grader reported nothing for it (it crashed; see the grader's report)")
+    return []
 
 
 def feedback_text(result: dict, exercises: list, output: str) -> str:
@@ -152,24 +174,6 @@ def feedback_text(result: dict, exercises: list, output: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def parse_blocks(text: str, names) -> dict:
-    """{exercise: (verdict line, block text)} for the per-exercise blocks tools/grade.py printed."""
-    head = re.compile(r"^(%s)\s+(passed|FAILED|not written yet)" % "|".join(map(re.escape, names)))
-    blocks, current = {}, None
-    for line in text.splitlines():
-        m = head.match(line)
-        if m:
-            current = m.group(1)
-            blocks[current] = [line]
-        elif line.startswith("exercises: "):
-            current = None
-        elif current is not None and line.startswith(" "):
-            blocks[current].append(line)
-        else:
-            current = None
-    return {k: (v[0].split(None, 1)[1].strip(), "\n".join(v)) for k, v in blocks.items()}
-
-
 # ---------------------------------------------------------------------------------------------- the batch
 def write_results(out_dir: pathlib.Path, results: list, names: list) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -188,7 +192,7 @@ def write_results(out_dir: pathlib.Path, results: list, names: list) -> None:
 
 
 def grade_all(submissions_dir, out_dir, jobs: int = 2, timeout_per_submission: float = 600, only=None,
-              root=ROOT, progress=None, timeout_per_exercise: float = 120, test_limit: float = TEST_TIME_LIMIT) -> list:
+              root=ROOT, progress=None, test_limit: float = TEST_TIME_LIMIT) -> list:
     """Grade every ``*.zip`` of ``submissions_dir`` (student id = the zip's stem) on ``jobs`` parallel workers;
     writes ``out_dir/grades.csv``, ``out_dir/feedback/<student>.txt`` and ``out_dir/answers/<student>.json``;
     returns the per-student results. ``progress(done, total, result)`` is called as each submission finishes."""
@@ -209,8 +213,7 @@ def grade_all(submissions_dir, out_dir, jobs: int = 2, timeout_per_submission: f
 
         def one(path):
             try:
-                return grade_submission(path, tree, reg, timeout_per_submission, only, root, timeout_per_exercise,
-                                        test_limit=test_limit)
+                return grade_submission(path, tree, reg, timeout_per_submission, only, root, test_limit=test_limit)
             except Exception as err:    # noqa: BLE001  (one submission never stops the batch)
                 return {"student": path.stem, "scores": {n: 0.0 for n in names}, "total": 0.0,
                         "possible": sum(points_of(ex) for ex in exercises),
@@ -236,9 +239,7 @@ def main(argv=None) -> int:
     parser.add_argument("submissions", type=pathlib.Path)
     parser.add_argument("--out", type=pathlib.Path, default=None, help="default: SUBMISSIONS/graded")
     parser.add_argument("--jobs", type=int, default=2)
-    parser.add_argument("--timeout", type=float, default=600, help="seconds per submission (one run of all)")
-    parser.add_argument("--timeout-exercise", type=float, default=120,
-                        help="seconds per exercise when it is re-run alone after a hang or crash")
+    parser.add_argument("--timeout", type=float, default=600, help="seconds per grading run of a submission")
     parser.add_argument("--timeout-test", type=float, default=TEST_TIME_LIMIT, help="seconds per check")
     parser.add_argument("--only", nargs="+", default=None, help="grade only these exercises")
     args = parser.parse_args(argv)
@@ -255,7 +256,7 @@ def main(argv=None) -> int:
 
     try:
         results = grade_all(args.submissions, out, args.jobs, args.timeout, args.only, progress=progress,
-                            timeout_per_exercise=args.timeout_exercise, test_limit=args.timeout_test)
+                            test_limit=args.timeout_test)
     except (ValueError, student.BuildError) as err:
         print("error: %s" % err, file=sys.stderr)
         return 2

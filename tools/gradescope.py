@@ -48,7 +48,7 @@ import student  # noqa: E402
 ROOT = student.ROOT
 GRADER_FILES = ("grade_all.py", "grading_tree.py", "submission_files.py", "student.py", "student_docs.py",
                 "gradescope.py")       # (grade_guard.py is in the grading tree, next to grade.py)
-TIMEOUTS = {"timeout": 180, "timeout_per_exercise": 60, "test_limit": 60}      # seconds
+TIMEOUTS = {"timeout": 180, "test_limit": 60}      # seconds: one grading run, one check
 MAX_UPLOAD_BYTES = 50_000_000
 STAMPS = ".source-times.json"        # the modules' time stamps: numba's cache is valid only for the same stamp
 

@@ -16,11 +16,13 @@ import ast
 import json
 import os
 import pathlib
+import re
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
+import time
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import student  # noqa: E402  (the answer key's builder)
@@ -72,38 +74,86 @@ def copy_numba_cache(src_root, tree) -> int:
 
 # ---------------------------------------------------------------------------------------------- running
 def run_grader(tree: pathlib.Path, names, timeout: float,
-               test_limit: float = TEST_TIME_LIMIT) -> tuple[str, dict | None, bool]:
-    """Run the tree's tools/grade.py on ``names`` (every failed check shown, ``test_limit`` seconds per check) in
-    its own process and session, killed whole after ``timeout`` seconds, under tools/grade_guard.py (no file
-    changed outside ``tree``'s parent, the submission's work folder). Returns (its output, capped; its --status
-    JSON ``{"passed": [...], "tests": {nodeid: outcome}}`` or None when it wrote none; whether it timed out)."""
-    status = tree / ".grade-status.json"
-    status.unlink(missing_ok=True)
+               test_limit: float = TEST_TIME_LIMIT) -> tuple[str, dict, str | None]:
+    """Run the tree's tools/grade.py on ``names`` (every failed check shown) in its own process and session under
+    tools/grade_guard.py (no file changed outside ``tree``'s parent, the submission's work folder).
+    Time limits: inside, a check over ``test_limit`` seconds fails (pytest-timeout; Python code only); outside, a
+    watchdog reads the progress file and kills the process whole when a check runs past the limit anyway (code
+    stuck in C holds the interpreter) or the run passes ``timeout``. Returns (its output, capped; read_progress();
+    None, "check" or "run": which limit killed it)."""
+    progress = tree / ".grade-progress.jsonl"
+    progress.unlink(missing_ok=True)
     with tempfile.TemporaryFile() as out:
         command = [sys.executable, "tools/grade_guard.py", str(tree.parent), "tools/grade.py", *names, "--all",
-                   "--timeout", "%g" % test_limit, "--status", str(status)]
+                   "--timeout", "%g" % test_limit, "--progress", str(progress)]
         proc = subprocess.Popen(command, cwd=str(tree), env=grader_env(tree), stdout=out,
                                 stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 start_new_session=(os.name == "posix"))
-        timed_out = False
-        try:
-            proc.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            timed_out = True
-            _kill(proc)
+        killed = _watch(proc, progress, time.time() + timeout, 1.2 * test_limit + 2)
+        ended = time.time()
         out.seek(0)
         text = out.read(MAX_OUTPUT_CHARS * 4).decode("utf-8", errors="replace")
     if len(text) > MAX_OUTPUT_CHARS:
         text = text[:MAX_OUTPUT_CHARS] + "\n... (output cut at %d characters)\n" % MAX_OUTPUT_CHARS
-    result = None
-    if not timed_out and status.exists():
+    return text, read_progress(progress, ended), killed
+
+
+def _watch(proc, progress: pathlib.Path, deadline: float, check_limit: float) -> str | None:
+    """Wait for ``proc``; kill it when the run passes ``deadline`` ("run") or one check runs longer than
+    ``check_limit`` seconds ("check"); None when it ended by itself."""
+    while True:
         try:
-            result = json.loads(status.read_text(encoding="utf-8"))
-            result = {"passed": list(result.get("passed", [])), "tests": dict(result.get("tests", {})),
-                      "failures": dict(result.get("failures", {})), "time_limit": list(result.get("time_limit", []))}
-        except (ValueError, AttributeError, TypeError):
-            result = None
-    return text, result, timed_out
+            proc.wait(timeout=0.5)
+            return None
+        except subprocess.TimeoutExpired:
+            pass
+        now = time.time()
+        if now > deadline:
+            _kill(proc)
+            return "run"
+        state = read_progress(progress, now)
+        if state["running"] and state["running_for"] > check_limit:
+            _kill(proc)
+            return "check"
+
+
+def read_progress(path: pathlib.Path, ended: float) -> dict:
+    """What a grading run got through, from its ``--progress`` lines (a line cut by a kill is ignored):
+    {"collected": [nodeid], "outcomes": {nodeid: outcome}, "failures": {nodeid: {"title", "text"}}, "running": the
+    check started and not finished or None, "running_for": its seconds until ``ended``, "finished": bool}."""
+    out = {"collected": [], "outcomes": {}, "failures": {}, "running": None, "running_for": 0.0, "finished": False}
+    try:
+        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError:
+        lines = []
+    started = 0.0
+    for line in lines:
+        try:
+            entry = json.loads(line)
+        except ValueError:
+            continue
+        if not isinstance(entry, dict):
+            continue
+        if "collected" in entry:
+            out["collected"] = [str(n) for n in entry["collected"]]
+        elif "start" in entry:
+            out["running"], started = str(entry["start"]), float(entry.get("time", ended))
+        elif "done" in entry:
+            nodeid = str(entry["done"])
+            out["outcomes"][nodeid] = str(entry.get("outcome", "failed"))
+            if out["outcomes"][nodeid] == "failed":
+                out["failures"][nodeid] = {"title": str(entry.get("title", "")), "text": str(entry.get("text", ""))}
+            out["running"] = None
+        elif entry.get("finished"):
+            out["finished"] = True
+    out["running_for"] = ended - started if out["running"] else 0.0
+    return out
+
+
+def exercise_of(nodeid: str) -> str:
+    """``tests/exercises/test_NAME[_hidden].py::...`` → NAME (as tools/grade.py)."""
+    stem = pathlib.PurePosixPath(nodeid.split("::")[0]).stem
+    return re.sub(r"_hidden$", "", stem[len("test_"):])
 
 
 KEPT_ENV = {"PATH", "LANG", "SYSTEMROOT", "SYSTEMDRIVE", "COMSPEC", "VIRTUAL_ENV", "CI"}
