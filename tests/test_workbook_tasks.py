@@ -118,3 +118,11 @@ def test_without_ci_or_off_x86_the_unit_tests_run_once(monkeypatch, capsys):
 def test_the_marker_of_the_left_out_tests_is_registered():
     text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
     assert '"%s: ' % workbook.CPU_INDEPENDENT in text
+
+
+@pytest.mark.cpu_independent  # a file check and a message
+def test_the_instructors_tasks_say_where_they_are_in_a_student_edition(tmp_path, monkeypatch):
+    monkeypatch.setattr(workbook, "ROOT", tmp_path)
+    monkeypatch.setattr(workbook, "setup", lambda: pytest.fail("set-up must not run when the tool is missing"))
+    with pytest.raises(workbook.TaskError, match="instructor's tool: it is in the answer key"):
+        workbook.TASKS["grade-all"](["submissions"])

@@ -219,6 +219,9 @@ def report(collector, exercises, shown=3) -> list[str]:
             print("      " + collector.failure.get(nodeid, "failed").replace("\n", "\n      "))
             if func in hints:
                 print("    hint: " + " ".join(hints[func].split()))
+        if ex["name"] in collector.time_limit:
+            print("  (after the time limit the other %d checks of this exercise were not run)"
+                  % sum(1 for _, o in results if o == "skipped"))
         if shown is not None and len(failed) > shown:
             print("  ... and %d more (make grade EX=%s, or tools/grade.py %s --verbose)"
                   % (len(failed) - shown, ex["name"], ex["name"]))

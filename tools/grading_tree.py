@@ -38,7 +38,7 @@ def build_grading_tree(dest, root=ROOT) -> pathlib.Path:
     registry: what every submission is graded in."""
     root, dest = pathlib.Path(root), pathlib.Path(dest)
     student.build(dest, root=root, quiet=True)
-    hidden = list((root / "tests" / "exercises").glob("test_*_hidden.py"))
+    hidden = list((root / "tests" / "exercises").glob("*_hidden.py"))      # hidden tests and their helpers
     hidden += list((root / "tests" / "exercises" / "fixtures").glob("*_hidden.npz"))
     for path in hidden + [root / "tools" / name for name in ("grade.py", "grade_guard.py", "exercises.toml")]:
         rel = path.relative_to(root)

@@ -324,10 +324,12 @@ def student_notebooks():
             env=tool_env())
 
 
-def grade_all(args):
-    """The instructor's batch grading of a folder of submission zips (tools/grade_all.py; answer key only)."""
+def instructor_tool(script, args):
+    """Run an instructor's tool of the answer key (tools/grade_all.py, gradescope.py, release.py)."""
+    if not (ROOT / script).exists():
+        raise TaskError("%s is the instructor's tool: it is in the answer key, not in the student edition" % script)
     setup()
-    run([venv_python(), "tools/grade_all.py"] + list(args), env=tool_env())
+    run([venv_python(), script] + list(args), env=tool_env())
 
 
 def student():
@@ -396,13 +398,10 @@ TASKS = {
     "bench": lambda args: bench(),
     "student": lambda args: student(),
     "submission": lambda args: run([sys.executable, "tools/submission.py"] + list(args)),
-    "grade-all": lambda args: grade_all(args),
-    "gradescope": lambda args: (setup(), run([venv_python(), "tools/gradescope.py", "build"] + list(args),
-                                             env=tool_env())),
-    "release": lambda args: (setup(), run([venv_python(), "tools/release.py", "solutions"] + list(args),
-                                          env=tool_env())),
-    "answers": lambda args: (setup(), run([venv_python(), "tools/release.py", "answers"] + list(args),
-                                          env=tool_env())),
+    "grade-all": lambda args: instructor_tool("tools/grade_all.py", args),
+    "gradescope": lambda args: instructor_tool("tools/gradescope.py", ["build"] + list(args)),
+    "release": lambda args: instructor_tool("tools/release.py", ["solutions"] + list(args)),
+    "answers": lambda args: instructor_tool("tools/release.py", ["answers"] + list(args)),
     "grade": lambda args: grade(args),
     "student-check": lambda args: (setup(), run([venv_python(), "tools/student_check.py"], env=tool_env())),
     "clean": lambda args: clean(),

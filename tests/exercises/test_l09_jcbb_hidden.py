@@ -1,6 +1,6 @@
 """Lecture L09: JCBB (hidden tests: the answer key's results on realistic scenes, and the node count).
 
-The range-bearing scenes of notebooks 06–08 with a large pose error (drawn again here from ``SCENES``; the
+The range-bearing scenes of notebooks 06–08 with a large pose error (drawn again by ``l09_scenes_hidden.py``; the
 fixture holds their observations to tell a changed generator from a wrong answer) and the lab's camera scene
 (recorded in full: its density comes from Lab 8 task 1c), with the number of expanded nodes; and the compiled
 JCBB of the advanced part (helpers.advanced.jcbb_fast, not an exercise: one compiled loop over an explicit
@@ -12,6 +12,7 @@ from __future__ import annotations
 import inspect
 
 import numpy as np
+from l09_scenes_hidden import describe, camera_scene, recorded_scenes
 from feedback import expect_close, expect_equal, fail, fixture
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -19,37 +20,10 @@ from test_l09_jcbb import random_scene
 
 import helpers.advanced.jcbb_fast as compiled
 from helpers.association.jcbb import jcbb
-from helpers.association.scenarios import range_bearing_scenario
 from helpers.gaussian import Gaussian
 
-#: The same list as tools/fixture_recipes_l09.py.
-SCENES = [dict(seed=(7, s), n_landmarks=100, n_visible=15, n_clutter=4, candidate_range=12.0,
-               pose_sigma=(0.8, 0.8, 0.25)) for s in range(6)]
-RECORDED = fixture("l09_jcbb_hidden")
-
-
-def recorded_scenes():
-    """(number, scene) of the range-bearing scenes, each checked against the recorded one first."""
-    for s, kwargs in enumerate(SCENES):
-        sc = range_bearing_scenario(**kwargs)
-        same = (sc.Y.shape == RECORDED["rb%d_Y" % s].shape
-                and np.allclose(sc.Y, RECORDED["rb%d_Y" % s], rtol=1e-9, atol=1e-10)
-                and np.allclose(sc.density.mean, RECORDED["rb%d_mu" % s], rtol=1e-9, atol=1e-10))
-        if not same:
-            fail("range-bearing scene %d of the hidden tests" % s, note="the scene generator no longer draws the "
-                 "recorded scene: re-record the fixture (tools/exercise_fixtures.py record l09_jcbb_hidden)")
-        yield s, sc
-
-
-def camera_scene():
-    """The lab's camera scene: (density, Y, truth)."""
-    return (Gaussian.from_cov(RECORDED["cam_mu"], RECORDED["cam_P"]), RECORDED["cam_Y"],
-            np.asarray(RECORDED["cam_truth"]))
-
-
-def describe(s):
-    """The call that draws range-bearing scene s."""
-    return "range_bearing_scenario(%s)" % ", ".join("%s=%s" % kv for kv in SCENES[s].items())
+NAME = "l09_jcbb_hidden"
+RECORDED = fixture(NAME)
 
 
 def check(res, key, what, given):
@@ -78,7 +52,7 @@ def check_search(res, key, what, given):
 def test_recorded_range_bearing_scenes():
     """The answer key's hypothesis and node count on six range-bearing scenes with a large pose error: the full
     search, a budget of 30 nodes, and n_sigma = 2"""
-    for s, sc in recorded_scenes():
+    for s, sc in recorded_scenes(RECORDED, NAME):
         for name, kwargs in (("full", {}), ("budget30", {"max_nodes": 30}), ("s2", {"n_sigma": 2.0})):
             check_search(jcbb(sc.density, sc.Y, **kwargs), "rb%d_%s" % (s, name),
                          "range-bearing scene %d with %s" % (s, kwargs or "n_sigma = 3"),
@@ -88,7 +62,7 @@ def test_recorded_range_bearing_scenes():
 def test_recorded_camera_scene():
     """The lab's camera scene (9 landmarks, 50 clutter features): every detected landmark found, no clutter
     taken, in the answer key's node count (and with a budget of 5 nodes)"""
-    density, Y, truth = camera_scene()
+    density, Y, truth = camera_scene(RECORDED)
     given = {"scene": "the lab camera scene", "truth": truth}
     full = jcbb(density, Y)
     expect_equal(np.asarray(full.idx).tolist(), truth.tolist(), "the camera scene: idx against the truth",
