@@ -61,13 +61,14 @@ def run_gradescope(autograder_zip: pathlib.Path, zips: list, work: pathlib.Path)
     return out
 
 
-def cpu_of_one(zip_path: pathlib.Path, tree: pathlib.Path) -> tuple[float, float]:
-    """(CPU seconds of the grading processes, wall seconds) of grading one submission alone."""
+def cpu_of_one(zip_path: pathlib.Path, tree: pathlib.Path) -> tuple[float, float, float]:
+    """(CPU seconds of the grading processes, wall seconds, score) of grading one submission alone."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    grade_all.grade_submission(zip_path, tree, student.load_registry(), timeout=180)
+    result = grade_all.grade_submission(zip_path, tree, student.load_registry(), timeout=180)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), time.perf_counter() - start
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return cpu, time.perf_counter() - start, result["total"]
 
 
 def main(argv=None) -> int:
@@ -91,10 +92,11 @@ def main(argv=None) -> int:
     gs = run_gradescope(autograder, sorted((work / "class").glob("*.zip")), work)
     gs_wall = time.perf_counter() - start
 
-    tree = grading_tree.build_grading_tree(work / "tree-for-cpu")
-    cpu, wall_one = cpu_of_one(work / "class" / "correct.zip", tree)
-
     bad = 0
+    tree = grading_tree.build_grading_tree(work / "tree-for-cpu")
+    cpu, wall_one, score_one = cpu_of_one(work / "class" / "correct.zip", tree)
+    bad += score_one != design["correct"][0]
+
     print("%-12s %8s %8s %10s  %s" % ("student", "designed", "grade-all", "gradescope", "what"))
     for name, (designed, what) in design.items():
         ok = abs(totals[name] - designed) < 1e-9 and abs(gs[name][0] - designed) < 1e-9
@@ -104,8 +106,8 @@ def main(argv=None) -> int:
     print("grade-all: %d submissions in %.0f s wall on %d workers" % (len(totals), batch_wall, args.jobs))
     print("gradescope: %d runs of run_autograder in %.0f s wall (one after another; slowest %.0f s)"
           % (len(gs), gs_wall, max(s for _, s in gs.values())))
-    print("one full correct submission: %.1f s CPU (target <= 60 s: ratio %.2f), %.1f s wall" % (cpu, cpu / 60,
-                                                                                                 wall_one))
+    print("one full correct submission alone: %g points, %.1f s CPU (target <= 60 s: ratio %.2f), %.1f s wall"
+          % (score_one, cpu, cpu / 60, wall_one))
     print("deleting submission: target file kept: %s; zip members written outside: %d" % (sentinel_kept,
                                                                                           len(escaped)))
     print("every score as designed: %s" % (bad == 0 and sentinel_kept and not escaped))

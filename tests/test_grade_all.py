@@ -268,6 +268,21 @@ def test_a_hang_hits_the_check_time_limit_and_costs_only_its_exercise(synthetic,
     assert json.dumps(result)                                 # plain data (what a worker hands back)
 
 
+def test_a_module_that_fails_to_import_costs_only_the_exercises_that_use_it(tmp_path, synthetic):
+    """An added helper whose default argument raises at import breaks every test file importing its module; the
+    other test files still run (lab8_3a lives in helpers/features.py)."""
+    features = "lab8_3a_detect_features"
+    with zipfile.ZipFile(synthetic[0] / "correct.zip") as zf:
+        files = {n: zf.read(n).decode("utf-8") for n in zf.namelist()}
+    files[MODULE] += "\n\ndef _my_helper(x=1 / 0):\n    return x\n"
+    path = make_zip(tmp_path / "import_error.zip", files)
+    tree = grading_tree.build_grading_tree(tmp_path / "tree")
+    result = grade_all.grade_submission(path, tree, student.load_registry(), timeout=120, only=[EX, features],
+                                        with_answers=False)
+    assert result["scores"] == {EX: 0, features: 5}
+    assert "does not import" in result["feedback"] and "ZeroDivisionError" in result["feedback"]
+
+
 def test_a_run_over_its_time_limit_is_killed_whole(synthetic):
     tree = grading_tree.build_grading_tree(synthetic[0].parent / "tree-run-limit")
     result = grade_all.grade_submission(synthetic[0] / "hang_c.zip", tree, student.load_registry(), timeout=8,

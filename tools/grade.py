@@ -170,7 +170,7 @@ def run_tests(files, collector, root=ROOT, verbose=False, time_limit=TEST_TIME_L
     os.chdir(root)
     sys.path.insert(0, str(root))
     args = ["-q", "-p", "no:cacheprovider", "-p", "no:randomly", "--tb=long", "-W", "error",
-            "-o", "addopts=", "--timeout=%g" % time_limit] + [str(f) for f in files]
+            "--continue-on-collection-errors", "-o", "addopts=", "--timeout=%g" % time_limit] + [str(f) for f in files]
     if verbose:
         return pytest.main(args, plugins=[collector])
     buffer = io.StringIO()

@@ -159,11 +159,9 @@ def feedback_text(result: dict, exercises: list, output: str) -> str:
         if reason:
             continue
         for g in result["groups"][name]:
-            mark = "✓" if not g["failed"] else "✗"
-            lines.append("    %s %-48s %g / %g%s" % (mark, g["title"] + (" [hidden]" if g["hidden"] else ""),
-                                                     g["score"], g["points"],
-                                                     "" if not g["failed"] else "   (%d of %d checks failed)" % (
-                                                         len(g["failed"]), len(g["tests"]))))
+            failed = "   (%d of %d checks failed)" % (len(g["failed"]), len(g["tests"])) if g["failed"] else ""
+            lines.append("    %s %4g / %-4g %s%s%s" % ("✗" if g["failed"] else "✓", g["score"], g["points"], g["title"],
+                                                   " [hidden]" if g["hidden"] else "", failed))
     answers = result.get("answers") or []
     if answers:
         lines += ["", "written answers (marked by hand): %d of %d answered, %d missing" % (
