@@ -40,6 +40,11 @@ def key_source() -> str:
     return (ROOT / MODULE).read_text(encoding="utf-8")
 
 
+def marked(feedback: str, mark: str, text: str) -> bool:
+    """Whether a line of ``feedback`` starts with ``mark`` (✓ or ✗) and holds ``text``."""
+    return any(line.lstrip().startswith(mark) and text in line for line in feedback.splitlines())
+
+
 def make_zip(path: pathlib.Path, files: dict) -> pathlib.Path:
     with zipfile.ZipFile(path, "w") as zf:
         for name, text in files.items():
@@ -227,8 +232,9 @@ def test_batch_scores_every_submission_as_designed(batch):
                                                                                 "untouched": 0}
     assert sorted(s for _, _, s in seen) == sorted(BATCH) and seen[-1][:2] == (len(BATCH), len(BATCH))
     rows = (out / "grades.csv").read_text(encoding="utf-8").splitlines()
-    assert rows[0] == "student,%s,total" % EX
-    assert "correct,5,5" in rows and "malicious,2,2" in rows and len(rows) == len(BATCH) + 1
+    n_answers = len(submission_files.answer_cells())
+    assert rows[0] == "student,%s,total,written answers" % EX and rows[-1] == "(max),5,5,%d" % n_answers
+    assert "correct,5,5,1" in rows and "malicious,2,2,0" in rows and len(rows) == len(BATCH) + 2
 
 
 def test_feedback_gives_the_reason_the_groups_and_every_failed_check(batch):
@@ -240,12 +246,24 @@ def test_feedback_gives_the_reason_the_groups_and_every_failed_check(batch):
     assert "not written yet" in feedback["untouched"]
     assert "ZeroDivisionError" in feedback["crash"] and "raised at helpers" in feedback["crash"]
     wrong = feedback["wrong_rows"]
-    assert "score: 2 of 5" in wrong and "✗ landmark j's own rows" in wrong and "✓ a plain bool" in wrong
+    assert "score: 2 of 5" in wrong and marked(wrong, "✗", "landmark j's own rows")
+    assert marked(wrong, "✓", "a plain bool")
     assert "[hidden]" in wrong and wrong.count("hint:") >= 3 and "actual" in wrong
     assert "score: 5 of 5" in feedback["correct"] and "score: 5 of 5" in feedback["loud"]
     assert "score: 2 of 5" in feedback["malicious"]        # its conftest.py, tests and grade.py were not used
     assert "PermissionError" in feedback["deletes"] and "outside the submission's folder" in feedback["deletes"]
     assert len(feedback["loud"]) < 2 * grading_tree.MAX_OUTPUT_CHARS
+    assert "not written yet" in feedback["untouched"] and "grader's report" not in feedback["untouched"]
+
+
+def test_the_public_feedback_shows_no_hidden_check(batch):
+    """What a student may see before the deadline: the public groups with every failed check, the hidden ones
+    only as a number of points."""
+    out = batch[0]
+    public = (out / "feedback-public" / "wrong_rows.txt").read_text(encoding="utf-8")
+    assert "score of the public checks: 2 of 3.5 (the hidden checks, 1.5 points" in public
+    assert marked(public, "✗", "0 / 1.5  landmark j's own rows") and "actual" in public and "hint:" in public
+    assert "[hidden]" not in public and "hidden.py" not in public and "lab template" not in public
 
 
 def test_nothing_outside_the_grading_folders_was_touched(batch, synthetic):

@@ -132,6 +132,23 @@ def test_model_answers_go_after_the_students_cells_once(tree, key):
     assert path.read_text(encoding="utf-8") == text
 
 
+def test_separate_changes_only_solutions_so_a_git_pull_never_conflicts(tree, key):
+    """--separate (the published edition): the stub and the notebook stay as they are; the model functions and
+    the model answers are new files under solutions/."""
+    path = tree / NOTEBOOK
+    path.parent.mkdir()
+    path.write_text(json.dumps(student_notebook(""), indent=1) + "\n", encoding="utf-8")
+    before = snapshot(tree)
+    assert release.main(["solutions", str(tree), "cw_q1c_compass_fix", "--separate"]) == 0
+    assert release.main(["solutions", str(tree), "99", "--separate"], root=key) == 0
+    after = snapshot(tree)
+    assert {k: v for k, v in after.items() if not k.startswith("solutions/")} == before
+    solution = (tree / "solutions" / "cw_q1c_compass_fix.py").read_text(encoding="utf-8")
+    assert release.whole_function(ROOT / EDGES, "EdgeHeadingPrior.evaluate") in solution
+    answers = (tree / "solutions" / "99_tiny_answers.md").read_text(encoding="utf-8")
+    assert KEY_ANSWER in answers and "```python" in answers and "print(7)" in answers
+
+
 # ---------------------------------------------------------------------------------------------- errors
 def test_unknown_name_or_not_an_edition_writes_nothing(tree, tmp_path, capsys):
     before = snapshot(tree)

@@ -223,7 +223,7 @@ def test_grader_report_shows_the_check_and_the_hint(capsys):
     col.doc = {"tests/exercises/test_a_hidden.py::test_y": "The sign is kept"}
     assert grade.report(col, exes) == []
     out = capsys.readouterr().out.splitlines()
-    assert out[0].split()[:2] == ["a", "FAILED"] and out[1].strip() == "✗ The sign is kept (test_y)"
+    assert out[0].split()[:2] == ["a", "FAILED"] and out[1].strip() == "✗ [hidden] The sign is kept (test_y)"
     assert out[2].strip() == "check: the sign" and out[5].strip() == "hint: look at the sign"
     assert out[-3].split()[:4] == ["b", "not", "written", "yet:"]
     assert out[-2].split()[:2] == ["c", "FAILED"] and "no test" in out[-2]

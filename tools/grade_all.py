@@ -81,6 +81,7 @@ def grade_submission(zip_path, grading_tree_dir, reg: dict, timeout: float = 600
               "possible": sum(points_of(ex) for ex in exercises), "reasons": reasons, "groups": groups,
               "answers": answers, "seconds": elapsed}
     result["feedback"] = feedback_text(result, exercises, output)
+    result["feedback_public"] = feedback_text(result, exercises, output, public=True)
     return result
 
 
@@ -147,42 +148,60 @@ def _after_an_early_end(group, progress, timed_out, limits, reasons) -> list:
     return []
 
 
-def feedback_text(result: dict, exercises: list, output: str) -> str:
-    """The student's feedback: total, points per exercise and per group, reasons, written answers, then the
-    grader's report of every failed check."""
-    lines = ["student: %s" % result["student"], "score: %g of %g" % (result["total"], result["possible"]), ""]
+def feedback_text(result: dict, exercises: list, output: str, public: bool = False) -> str:
+    """The feedback: total, points per exercise and per group, reasons, written answers, then the grader's report
+    of every failed check (the instructor's version, hidden checks marked [hidden]). ``public``: the version a
+    student may see before the deadline: the public groups only, each failed one with its failed checks (given,
+    expected, actual, hint), and no word of the hidden checks but their total points."""
+    hidden = sum(g["points"] for n in result["groups"] for g in result["groups"][n] if g["hidden"])
+    got = sum(g["score"] for n in result["groups"] for g in result["groups"][n] if g["hidden"])
+    lines = ["student: %s" % result["student"]]
+    lines += (["score of the public checks: %g of %g (the hidden checks, %g points, are graded after the deadline)"
+               % (result["total"] - got, result["possible"] - hidden, hidden)] if public else
+              ["score: %g of %g" % (result["total"], result["possible"])]) + [""]
     for ex in exercises:
         name = ex["name"]
+        groups = [g for g in result["groups"].get(name, []) if not (public and g["hidden"])]
         reason = result["reasons"].get(name)
-        lines.append("%-36s %g / %g%s" % (name, result["scores"][name], points_of(ex),
+        lines.append("%-36s %g / %g%s" % (name, sum(g["score"] for g in groups), sum(g["points"] for g in groups),
                                           ("    " + reason) if reason else ""))
-        if reason:
-            continue
-        for g in result["groups"][name]:
+        for g in [] if reason else groups:
             failed = "   (%d of %d checks failed)" % (len(g["failed"]), len(g["tests"])) if g["failed"] else ""
             lines.append("    %s %4g / %-4g %s%s%s" % ("✗" if g["failed"] else "✓", g["score"], g["points"], g["title"],
                                                    " [hidden]" if g["hidden"] else "", failed))
+            if public and g["failed"]:
+                lines.append("        " + g["output"].replace("\n", "\n        "))
     answers = result.get("answers") or []
     if answers:
-        lines += ["", "written answers (marked by hand): %d of %d answered, %d missing" % (
-            sum(a["status"] == "answered" for a in answers), len(answers),
-            sum(a["status"] == "missing" for a in answers))]
-    if output:
+        n = {st: sum(a["status"] == st for a in answers) for st in ("answered", "unanswered", "missing")}
+        lines += ["", "written answers (marked by hand): %d of %d answered, %d unanswered, %d not in the submission"
+                  % (n["answered"], len(answers), n["unanswered"], n["missing"])]
+    if output and not public:
         lines += ["", "--- the grader's report (%.0f s) ---" % result.get("seconds", 0.0), output.rstrip("\n")]
     return "\n".join(lines) + "\n"
 
 
 # ---------------------------------------------------------------------------------------------- the batch
-def write_results(out_dir: pathlib.Path, results: list, names: list) -> None:
+def write_results(out_dir: pathlib.Path, results: list, exercises: list) -> None:
+    """grades.csv (one row per student: points per exercise, total, written answers given; a last row "(max)"),
+    feedback/ (the instructor's), feedback-public/ (what a student may see before the deadline) and answers/."""
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "feedback").mkdir(exist_ok=True)
+    (out_dir / "feedback-public").mkdir(exist_ok=True)
+    names = [ex["name"] for ex in exercises]
     with open(out_dir / "grades.csv", "w", newline="", encoding="utf-8") as fh:
         writer = csv.writer(fh)
-        writer.writerow(["student"] + names + ["total"])
+        writer.writerow(["student"] + names + ["total", "written answers"])
         for r in sorted(results, key=lambda r: r["student"]):
-            writer.writerow([r["student"]] + ["%g" % r["scores"][n] for n in names] + ["%g" % r["total"]])
+            answered = sum(a["status"] == "answered" for a in r.get("answers") or [])
+            writer.writerow([r["student"]] + ["%g" % r["scores"][n] for n in names] + ["%g" % r["total"], answered])
+        n_answers = max((len(r.get("answers") or []) for r in results), default=0)
+        writer.writerow(["(max)"] + ["%g" % points_of(ex) for ex in exercises]
+                        + ["%g" % sum(points_of(ex) for ex in exercises), n_answers])
     for r in results:
         (out_dir / "feedback" / ("%s.txt" % r["student"])).write_text(r["feedback"], encoding="utf-8")
+        (out_dir / "feedback-public" / ("%s.txt" % r["student"])).write_text(r.get("feedback_public", r["feedback"]),
+                                                                             encoding="utf-8")
         if r.get("answers"):
             (out_dir / "answers").mkdir(exist_ok=True)
             (out_dir / "answers" / ("%s.json" % r["student"])).write_text(
@@ -228,12 +247,12 @@ def grade_all(submissions_dir, out_dir, jobs: int = 2, timeout_per_submission: f
     finally:
         grading_tree.set_read_only(work, False)
         shutil.rmtree(work, ignore_errors=True)
-    write_results(out_dir, results, names)
+    write_results(out_dir, results, exercises)
     return results
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description="Grade every submission zip of a folder (see the module docstring).")
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("submissions", type=pathlib.Path)
     parser.add_argument("--out", type=pathlib.Path, default=None, help="default: SUBMISSIONS/graded")
     parser.add_argument("--jobs", type=int, default=2)

@@ -12,14 +12,14 @@ The zip built here holds:
 
 - ``tree/``: the grading tree (tools/grading_tree.py: the student edition, the hidden tests and fixtures, the
   answer key's grade.py and registry); no answer-key body and no answer cell text is in it;
-- ``grader/``: the grading code (grade_all.py, grading_tree.py, submission_files.py, student.py, student_docs.py and
-  this file), run with ``tree/`` as the root;
+- ``grader/``: the grading code (grade_all.py, grading_tree.py, submission_files.py, submission.py, student.py,
+  student_docs.py and this file), run with ``tree/`` as the root;
 - ``requirements.txt`` (the workbook's lock), ``setup.sh`` (Python 3.12 of Ubuntu 24.04 in a venv, the lock, one
   run of the grader to fill numba's cache) and ``run_autograder``.
 
-numba's on-disk cache of the grading tree (compiled on the machine that built the zip) is in the zip with the
-modules' time stamps; a container with another CPU compiles the kernels its checks reach again (about 30 s of CPU
-per submission on this machine; setup.sh compiles those the untouched edition's checks reach).
+numba's on-disk cache is not in the zip (it holds this machine's CPU and Python); setup.sh compiles the kernels the
+untouched edition's checks reach into the tree's cache, once; those only a solved exercise reaches are compiled
+per submission (at most about 30 s of CPU on this machine).
 
 ``run``: the upload is the student's ``submission.zip`` (``make submission``) or its contents; a folder upload is
 packed into a zip (regular files only: symbolic links are skipped) and graded exactly as ``grade_all`` grades a zip.
@@ -46,11 +46,10 @@ import grading_tree  # noqa: E402
 import student  # noqa: E402
 
 ROOT = student.ROOT
-GRADER_FILES = ("grade_all.py", "grading_tree.py", "submission_files.py", "student.py", "student_docs.py",
-                "gradescope.py")       # (grade_guard.py is in the grading tree, next to grade.py)
+GRADER_FILES = ("grade_all.py", "grading_tree.py", "submission_files.py", "submission.py", "student.py",
+                "student_docs.py", "gradescope.py")       # (grade_guard.py is in the grading tree, next to grade.py)
 TIMEOUTS = {"timeout": 180, "test_limit": 60}      # seconds: one grading run, one check
 MAX_UPLOAD_BYTES = 50_000_000
-STAMPS = ".source-times.json"        # the modules' time stamps: numba's cache is valid only for the same stamp
 
 SETUP_SH = """#!/usr/bin/env bash
 # Gradescope runs this once when it builds the autograder image (base image: Ubuntu 24.04, which has Python 3.12).
@@ -77,9 +76,6 @@ def build(out: pathlib.Path, root=ROOT) -> pathlib.Path:
     work = pathlib.Path(tempfile.mkdtemp(prefix="gradescope-"))
     try:
         grading_tree.build_grading_tree(work / "tree", root)
-        stamps = {p.relative_to(work / "tree").as_posix(): p.stat().st_mtime
-                  for p in (work / "tree" / "helpers").rglob("*.py")}
-        (work / "tree" / STAMPS).write_text(json.dumps(stamps, indent=0, sort_keys=True), encoding="utf-8")
         (work / "grader").mkdir()
         for name in GRADER_FILES:
             shutil.copy2(root / "tools" / name, work / "grader" / name)
@@ -90,7 +86,7 @@ def build(out: pathlib.Path, root=ROOT) -> pathlib.Path:
         partial = out.with_name(out.name + ".partial")
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
             for path in sorted(work.rglob("*")):
-                if path.is_file() and "__pycache__" not in path.parts or path.suffix in (".nbi", ".nbc"):
+                if path.is_file() and "__pycache__" not in path.parts:    # (numba's cache is for this machine)
                     info = zipfile.ZipInfo.from_file(path, path.relative_to(work).as_posix())
                     if path.name in ("setup.sh", "run_autograder"):
                         info.external_attr = 0o100755 << 16
@@ -146,27 +142,10 @@ def results_json(result: dict, exercises: list) -> dict:
             "execution_time": round(result.get("seconds", 0.0), 1)}
 
 
-def restamp(tree: pathlib.Path) -> int:
-    """Give the modules of ``tree`` the time stamps they had when the zip was built (unpacking a zip may not keep
-    them, and numba takes a cache entry only for the same stamp); returns how many were set."""
-    count = 0
-    try:
-        stamps = json.loads((tree / STAMPS).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return 0
-    for rel, mtime in stamps.items():
-        path = tree / rel
-        if path.is_file() and path.stat().st_mtime != mtime:
-            os.utime(path, (mtime, mtime))
-            count += 1
-    return count
-
-
 def run(ag_root: pathlib.Path, only=None) -> dict:
     """Grade ``ag_root/submission`` with the tree in ``ag_root/source/tree`` (the exercises ``only``, default all);
     write and return the results."""
     tree = ag_root / "source" / "tree"
-    restamp(tree)
     reg = student.load_registry(tree)
     out = ag_root / "results" / "results.json"
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -185,7 +164,7 @@ def run(ag_root: pathlib.Path, only=None) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description="Gradescope autograder (see the module docstring).")
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="cmd", required=True)
     b = sub.add_parser("build", help="write the autograder zip")
     b.add_argument("--out", type=pathlib.Path, default=ROOT / "build" / "autograder.zip")

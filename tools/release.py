@@ -1,6 +1,6 @@
 """Release the course's model solutions into a student's tree, and gather written answers for marking by hand.
 
-    python tools/release.py solutions TREE NAME [NAME ...]       # = workbook.py release TREE NAME ...
+    python tools/release.py solutions TREE NAME [NAME ...] [--separate]   # = workbook.py release TREE NAME ...
     python tools/release.py answers SUBMISSIONS_DIR [--out DIR]  # = workbook.py answers SUBMISSIONS_DIR
 
 ``solutions``: TREE is a student edition (it has the ``.student-edition-files`` manifest of ``make student`` and
@@ -10,9 +10,12 @@ gets the answer key's body in place; a target the student wrote (or that TREE la
 touched, and the answer key's whole function goes to ``TREE/solutions/<exercise>.py``; one line per target says
 which. A notebook: after each ``student-answer`` cell, a cell tagged ``model-answer`` (id: the answer cell's id +
 ``-model``) with the answer key's answer (code as code, without outputs); the student's cells are not changed and
-a second run replaces the model cells. Everything is checked and prepared before the first file is written, each
-file atomically; an unknown NAME, a TREE that is not an edition or a file that cannot be prepared: a message,
-exit status 2, nothing written.
+a second run replaces the model cells. ``--separate`` (for the published edition, which students pull with git):
+nothing of TREE changes but ``solutions/``: each exercise's model functions go to ``solutions/<exercise>.py`` and
+each notebook's questions with their model answers to ``solutions/<notebook>_answers.md``, so a student's own
+code and answers never conflict with the release. Everything is checked and prepared before the first file is
+written, each file atomically; an unknown NAME, a TREE that is not an edition or a file that cannot be prepared:
+a message, exit status 2, nothing written.
 
 ``answers``: the written answers of every ``<student id>.zip`` of SUBMISSIONS_DIR (read with
 ``submission_files.read_answers``: nothing is extracted or run) as one self-contained UTF-8 HTML page per answer
@@ -130,8 +133,9 @@ def _read(path: pathlib.Path, pending: dict):
         return None
 
 
-def plan_exercise(tree, ex: dict, root, pending: dict, scratch) -> list:
-    """Put the new texts of the exercise's files into ``pending`` ({path: text}); returns the report lines."""
+def plan_exercise(tree, ex: dict, root, pending: dict, scratch, separate: bool = False) -> list:
+    """Put the new texts of the exercise's files into ``pending`` ({path: text}); returns the report lines.
+    ``separate``: every target's model solution goes to solutions/, no module of TREE changes."""
     kept, lines = [], []
     out_rel = "solutions/%s.py" % ex["name"]
     for target in ex["targets"]:
@@ -141,7 +145,7 @@ def plan_exercise(tree, ex: dict, root, pending: dict, scratch) -> list:
         key_body = student.function_body_source(key_path, qualname)
         model_dump = student.body_dump(key_path, qualname)
         text = _read(tree / rel, pending)
-        state = target_state(text, qualname, model_dump)
+        state = "separate" if separate else target_state(text, qualname, model_dump)
         where = "%s: %s in %s" % (ex["name"], qualname, rel)
         if state == "stub":
             pending[tree / rel] = _with_body(text, qualname, key_body, scratch)
@@ -151,7 +155,8 @@ def plan_exercise(tree, ex: dict, root, pending: dict, scratch) -> list:
         else:
             kept.append((rel, qualname))
             why = {"own": "the student's own code kept", "missing": "not found in TREE",
-                   "unparsable": "the file does not parse: left as it is"}[state]
+                   "unparsable": "the file does not parse: left as it is",
+                   "separate": "left as it is (--separate)"}[state]
             lines.append("%s: %s; the model solution is in %s" % (where, why, out_rel))
     if kept:
         pending[tree / out_rel] = solution_file(ex["name"], kept, root)
@@ -182,13 +187,24 @@ def _load_notebook(path: pathlib.Path, text: str) -> dict:
     return nb
 
 
-def plan_notebook(tree, stem: str, root, pending: dict) -> list:
-    """Put the notebook with its model-answer cells into ``pending``; returns the report lines."""
+def plan_notebook(tree, stem: str, root, pending: dict, separate: bool = False) -> list:
+    """Put the notebook with its model-answer cells into ``pending`` (``separate``: the questions and model answers
+    into solutions/<notebook>_answers.md, the notebook unchanged); returns the report lines."""
     key = _load_notebook(root / "notebooks" / (stem + ".ipynb"),
                          (root / "notebooks" / (stem + ".ipynb")).read_text(encoding="utf-8"))
     answers = [c for c in key["cells"] if "answer" in c.get("metadata", {}).get("tags", [])]
     if not answers:
         return ["notebook %s: no written questions, nothing to release" % stem]
+    if separate:
+        parts = ["# Model answers of notebooks/%s.ipynb\n\nThe course's model answers, released by the instructor; "
+                 "your own answers in the notebook are left as they are.\n" % stem]
+        for answer in answers:
+            source = answer.get("source", "")
+            text = "".join(source) if isinstance(source, list) else str(source)
+            fence = "```python\n%s\n```" % text.rstrip("\n") if answer.get("cell_type") == "code" else text.rstrip()
+            parts.append("\n## %s\n\n%s\n" % (" ".join(str(answer["metadata"].get("question", "")).split()), fence))
+        pending[tree / "solutions" / ("%s_answers.md" % stem)] = "".join(parts)
+        return ["notebook %s: %d model answers in solutions/%s_answers.md" % (stem, len(answers), stem)]
     path = tree / "notebooks" / (stem + ".ipynb")
     text = _read(path, pending)
     if text is None:
@@ -231,7 +247,7 @@ def write_atomic(path: pathlib.Path, text: str) -> None:
         raise
 
 
-def release(tree, names, root=ROOT) -> list:
+def release(tree, names, root=ROOT, separate: bool = False) -> list:
     """Release the model solutions of ``names`` into ``tree`` (see the module docstring); returns the report."""
     tree, root = pathlib.Path(tree), pathlib.Path(root)
     check_edition(tree)
@@ -241,9 +257,9 @@ def release(tree, names, root=ROOT) -> list:
         with tempfile.TemporaryDirectory(prefix="release-") as scratch:
             for kind, what in plan:
                 if kind == "exercise":
-                    lines += plan_exercise(tree, what, root, pending, pathlib.Path(scratch))
+                    lines += plan_exercise(tree, what, root, pending, pathlib.Path(scratch), separate)
                 else:
-                    lines += plan_notebook(tree, what, root, pending)
+                    lines += plan_notebook(tree, what, root, pending, separate)
     except (student.BuildError, OSError, SyntaxError, UnicodeDecodeError) as err:
         raise ReleaseError(str(err)) from None
     for path, text in pending.items():
@@ -346,9 +362,14 @@ def answers_html(submissions, out=None, root=ROOT) -> pathlib.Path:
 # ---------------------------------------------------------------------------------------------- command line
 def main(argv=None, root=ROOT) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
+    if {"-h", "--help"} & set(argv):
+        print(__doc__)
+        return 0
+    separate = "--separate" in argv
+    argv = [a for a in argv if a != "--separate"]
     try:
         if argv[:1] == ["solutions"] and len(argv) >= 3:
-            print("\n".join(release(argv[1], argv[2:], root)))
+            print("\n".join(release(argv[1], argv[2:], root, separate)))
         elif argv[:1] == ["answers"] and (len(argv) == 2 or (len(argv) == 4 and argv[2] == "--out")):
             out = answers_html(argv[1], argv[3] if len(argv) == 4 else None, root)
             print("written answers: %s" % (out / "index.html"))

@@ -9,6 +9,10 @@ from __future__ import annotations
 
 import json
 import pathlib
+import sys
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import submission  # noqa: E402  (the answer cells' prompt, and what counts as answered)
 
 NOTEBOOK_IMPORT = "import helpers.exercises  # short messages for unimplemented exercises"
 EXERCISE_CELL_ID = "student-edition-exercises"
@@ -61,7 +65,7 @@ def student_readme(template: str, reg: dict) -> str:
     return template.replace("{n}", str(len(reg["exercise"])))
 
 
-ANSWER_PROMPT = "*Your answer:* (write it in this cell, and keep the cell where it is)"
+ANSWER_PROMPT = "%s %s" % (submission.PROMPT, submission.PROMPT_NOTE)
 
 
 def question_cells(cell: dict) -> list:
@@ -77,7 +81,7 @@ def question_cells(cell: dict) -> list:
     answer = {"cell_type": cell["cell_type"], "id": cell.get("id"),
               "metadata": {"tags": ["student-answer"], "question": question}, "source": []}
     if cell["cell_type"] == "code":
-        answer.update(outputs=[], execution_count=None, source=lines_of("# your answer (code)\n"))
+        answer.update(outputs=[], execution_count=None, source=lines_of(submission.CODE_PROMPT + "\n"))
     else:
         answer["source"] = lines_of(ANSWER_PROMPT)
     return [ask, answer]

@@ -19,7 +19,22 @@ import tomllib
 import zipfile
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-PROMPT = "*Your answer:*"
+PROMPT = "*Your answer:*"                 # the edition's answer cells start with these (tools/student_docs.py)
+PROMPT_NOTE = "(write it in this cell, and keep the cell where it is)"
+CODE_PROMPT = "# your answer (code)"
+
+
+def answer_text(text: str) -> str:
+    """A ``student-answer`` cell's answer: its text without the edition's prompt ("" when nothing is written). The
+    one rule for "answered", here and in the instructor's grader."""
+    text = text.strip()
+    if text == CODE_PROMPT:
+        return ""
+    if text.startswith(PROMPT):
+        text = text[len(PROMPT):].strip()
+        if text.startswith(PROMPT_NOTE):
+            text = text[len(PROMPT_NOTE):].strip()
+    return text
 
 
 def exercise_files(root: pathlib.Path = ROOT) -> dict:
@@ -68,8 +83,8 @@ def empty_answers(root: pathlib.Path) -> tuple[int, int]:
         for cell in json.loads(path.read_text(encoding="utf-8")).get("cells", []):
             if "student-answer" in cell.get("metadata", {}).get("tags", []):
                 total += 1
-                text = "".join(cell.get("source", [])).strip()
-                empty += (not text) or text.startswith(PROMPT) or text == "# your answer (code)"
+                source = cell.get("source", [])
+                empty += not answer_text("".join(source) if isinstance(source, list) else str(source))
     return empty, total
 
 

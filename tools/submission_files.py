@@ -16,6 +16,7 @@ import re
 import shutil
 import sys
 import tempfile
+import textwrap
 import zipfile
 import zlib
 
@@ -105,9 +106,8 @@ def read_answers(zip_path: pathlib.Path, wanted: list) -> list:
     cell with the same id in the submitted notebook (tag ``student-answer``), as text. Only ``notebooks/*.ipynb``
     members are read, as JSON; the question is the answer key's. Status: answered, unanswered (the prompt as the
     edition left it, or empty), or missing (no such notebook or cell, or a notebook that is not JSON)."""
-    import student_docs
+    import submission
 
-    untouched = {"", student_docs.ANSWER_PROMPT.strip(), "# your answer (code)"}
     notebooks = {}
     try:
         with zipfile.ZipFile(zip_path) as archive:
@@ -131,7 +131,7 @@ def read_answers(zip_path: pathlib.Path, wanted: list) -> list:
         if cell is not None:
             source = cell.get("source", "")
             text = ("".join(source) if isinstance(source, list) else str(source))[:MAX_ANSWER_CHARS].strip()
-            entry.update(answer=text, status="unanswered" if text in untouched else "answered")
+            entry.update(answer=text, status="answered" if submission.answer_text(text) else "unanswered")
         out.append(entry)
     return out
 
@@ -164,6 +164,19 @@ def added_helpers(student_source: str, key_source: str) -> list[str]:
     return out
 
 
+def is_stub(body: str) -> bool:
+    """Whether a function body (its source) is the student edition's stub: one ``raise ExerciseNotImplemented(...)``
+    (after the docstring, if any)."""
+    try:
+        stmts = ast.parse(textwrap.dedent(body)).body
+    except SyntaxError:
+        return False
+    if stmts and isinstance(stmts[0], ast.Expr) and isinstance(stmts[0].value, ast.Constant):
+        stmts = stmts[1:]
+    return (len(stmts) == 1 and isinstance(stmts[0], ast.Raise) and isinstance(stmts[0].exc, ast.Call)
+            and getattr(stmts[0].exc.func, "id", None) == "ExerciseNotImplemented")
+
+
 def merge_submission(tree: pathlib.Path, sources: dict, files: dict, root=ROOT) -> dict:
     """Write the student's bodies of every target (and their added helpers) into ``tree``.
     ``files`` = exercise_files(); returns {exercise: reason} for exercises that cannot be graded (their stubs stay)."""
@@ -171,6 +184,7 @@ def merge_submission(tree: pathlib.Path, sources: dict, files: dict, root=ROOT) 
     scratch = pathlib.Path(tempfile.mkdtemp(prefix="student-src-"))
     try:
         for name, targets in files.items():
+            stubs = 0
             for rel, qualname in targets:
                 if rel not in sources:
                     continue
@@ -182,12 +196,15 @@ def merge_submission(tree: pathlib.Path, sources: dict, files: dict, root=ROOT) 
                     body = student.function_body_source(src_file, qualname)
                     if not body.strip():
                         raise student.BuildError("the body of %s is empty" % qualname)
+                    stubs += is_stub(body)
                     student.replace_body(dest, qualname, body)
                     ast.parse(dest.read_text(encoding="utf-8"))
                 except (student.BuildError, SyntaxError, ValueError) as err:
                     dest.write_text(before, encoding="utf-8")
                     problems[name] = "%s: cannot take %s from it: %s" % (
                         rel, qualname, str(err).replace(str(src_file), rel))
+            if stubs == len(targets):                   # nothing written: no need to run its checks
+                problems.setdefault(name, "not written yet (%s still the stub)" % ", ".join(q for _, q in targets))
         for rel in sorted({r for targets in files.values() for r, _ in targets} & set(sources)):
             extra = added_helpers(sources[rel], (pathlib.Path(root) / rel).read_text(encoding="utf-8"))
             if extra:

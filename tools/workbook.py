@@ -5,7 +5,7 @@
     python3 tools/workbook.py lab          # = make lab
     python3 tools/workbook.py setup | test-unit | test-notebooks | notebooks | execute NB... | bench
     python3 tools/workbook.py clean | distclean
-    python3 tools/workbook.py student              # = make student: the student edition in build/student
+    python3 tools/workbook.py student [DEST]       # = make student: the student edition in build/student
     python3 tools/workbook.py grade [NAME]         # = make grade [EX=NAME]: grade the exercises
     python3 tools/workbook.py submission           # = make submission: the student's work in submission.zip
     python3 tools/workbook.py grade-all SUBMISSIONS_DIR  # grade a folder of submission zips (tools/grade_all.py)
@@ -332,8 +332,12 @@ def instructor_tool(script, args):
     run([venv_python(), script] + list(args), env=tool_env())
 
 
-def student():
-    run([sys.executable, "tools/student.py", "build"])
+def student(args=()):
+    """The student edition: build/student, or the folder given (``student DEST``); ``--help``: tools/student.py's."""
+    args = list(args)
+    if {"-h", "--help"} & set(args) or len(args) > 1:
+        raise TaskError("usage: workbook.py student [DEST]  (default build/student; tools/student.py --help for more)")
+    run([sys.executable, "tools/student.py", "build"] + args)
 
 
 def grade(args):
@@ -396,7 +400,7 @@ TASKS = {
     "execute": lambda args: execute(args),
     "lab": lambda args: lab(),
     "bench": lambda args: bench(),
-    "student": lambda args: student(),
+    "student": lambda args: student(args),
     "submission": lambda args: run([sys.executable, "tools/submission.py"] + list(args)),
     "grade-all": lambda args: instructor_tool("tools/grade_all.py", args),
     "gradescope": lambda args: instructor_tool("tools/gradescope.py", ["build"] + list(args)),
