@@ -88,8 +88,7 @@ def target_state(text, qualname: str, model_dump: str) -> str:
     if node is None:
         return "missing"
     stmts = node.body[1:] if student._has_docstring(node) else node.body
-    if len(stmts) == 1 and isinstance(stmts[0], ast.Raise) and isinstance(stmts[0].exc, ast.Call) \
-            and isinstance(stmts[0].exc.func, ast.Name) and stmts[0].exc.func.id == "ExerciseNotImplemented":
+    if student.is_stub(stmts):
         return "stub"
     return "model" if "\n".join(ast.dump(s) for s in stmts) == model_dump else "own"
 

@@ -178,6 +178,13 @@ def stub_body(name: str) -> str:
     return "raise ExerciseNotImplemented(%r, %r)" % (name, where(name))
 
 
+def is_stub(stmts: list) -> bool:
+    """Whether a function's statements (its docstring left out) are the edition's stub: one
+    ``raise ExerciseNotImplemented(...)``."""
+    return (len(stmts) == 1 and isinstance(stmts[0], ast.Raise) and isinstance(stmts[0].exc, ast.Call)
+            and getattr(stmts[0].exc.func, "id", None) == "ExerciseNotImplemented")
+
+
 def body_dump(path: pathlib.Path, qualname: str) -> str:
     """The body statements of ``qualname`` (docstring excluded) as an AST dump, for comparisons."""
     node = find_function(ast.parse(path.read_text(encoding="utf-8")), qualname)
