@@ -1,9 +1,11 @@
-"""Reading a camera calibration from an OpenCV FileStorage file (``data/camera.xml``): a map ``camera``
+"""Reading and writing a camera calibration as an OpenCV FileStorage file (``data/camera.xml``): a map ``camera``
 with ``camera_matrix`` (3×3), ``distortion_coefficients`` (12×1), ``flags`` (int) and ``imageSize`` (width height).
 """
 from __future__ import annotations
 
 import numbers
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +13,7 @@ from numpy.typing import ArrayLike
 
 from .validation import float_array
 
-__all__ = ["read_camera_xml", "check_calibration", "REQUIRED_FLAGS"]
+__all__ = ["read_camera_xml", "write_camera_xml", "check_calibration", "REQUIRED_FLAGS"]
 
 CALIB_RATIONAL_MODEL = 16384
 CALIB_THIN_PRISM_MODEL = 32768
@@ -90,3 +92,34 @@ def read_camera_xml(path: str | Path) -> tuple[np.ndarray, np.ndarray, tuple[int
         return _read_node(fs, path)
     finally:
         fs.release()
+
+
+def write_camera_xml(path: str | Path, K: ArrayLike, dist_coeffs: ArrayLike, image_size: ArrayLike, flags: int) -> Path:
+    """Write a calibration in the format :func:`read_camera_xml` reads (12 coefficients, zero-padded from 4, 5 or
+    8). The values are checked first (``check_calibration``); the file is written next to ``path`` and renamed
+    onto it, so a failed write leaves an existing file as it was. Returns the path."""
+    import cv2
+
+    path = _path(path)
+    K, d, (width, height), flags = check_calibration(K, dist_coeffs, image_size, flags)
+    if not path.parent.is_dir():
+        raise ValueError(f"path: folder {path.parent} does not exist")
+    fd, tmp = tempfile.mkstemp(suffix=".xml", dir=path.parent)
+    os.close(fd)
+    try:
+        fs = cv2.FileStorage(tmp, cv2.FILE_STORAGE_WRITE)
+        fs.startWriteStruct("camera", cv2.FileNode_MAP)
+        fs.write("camera_matrix", K)
+        fs.write("distortion_coefficients", d.reshape(12, 1))
+        fs.write("flags", flags)
+        fs.startWriteStruct("imageSize", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
+        fs.write("", width)
+        fs.write("", height)
+        fs.endWriteStruct()
+        fs.endWriteStruct()
+        fs.release()
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return path

@@ -31,7 +31,8 @@ from .state_slam import LAB_DEMO_CAMERA_POSE, _check_camera, lab_demo_state
 from .validation import finite_vector, float_array, integer, nonnegative_number, positive_number, rng_seed
 
 __all__ = ["REFERENCE_POSE", "LAB_LANDMARKS", "PATTERN_SIZE", "SQUARE_SIZE", "TEXTURE_WAVELENGTHS", "RenderedScene",
-           "board_points", "render_lab_scene", "find_board_corners", "recover_pose", "ChessboardNotFoundError"]
+           "board_points", "render_lab_scene", "find_board_corners", "recover_pose", "pose_from_board_extrinsics",
+           "ChessboardNotFoundError"]
 
 #: Camera pose recovered from the original photograph: [rCNn (m); Θnc (rad)].
 REFERENCE_POSE = LAB_DEMO_CAMERA_POSE.copy()
@@ -347,6 +348,14 @@ def find_board_corners(image: np.ndarray, pattern_size: tuple[int, int] = PATTER
     return corners.reshape(-1, 2).T.astype(float)
 
 
+def pose_from_board_extrinsics(rvec: ArrayLike, tvec: ArrayLike) -> np.ndarray:
+    """Camera pose [rCNn; Θnc] (6,) in the board frame from OpenCV's extrinsics (rvec, tvec), which map a board
+    point to the camera frame, rPCc = Rcn rPNn + t with Rcn = Rodrigues(rvec): Rnc = Rcnᵀ, rCNn = −Rcnᵀ t."""
+    Rcn, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
+    t = np.asarray(tvec, dtype=np.float64).ravel()
+    return np.concatenate([-Rcn.T @ t, rot2rpy(Rcn.T)])
+
+
 def recover_pose(image: np.ndarray, camera: Camera, pattern_size: tuple[int, int] = PATTERN_SIZE,
                  square_size: float = SQUARE_SIZE) -> tuple[np.ndarray, np.ndarray]:
     """Camera pose [rCNn; Θnc] from the chessboard, as the lab does it.
@@ -363,5 +372,4 @@ def recover_pose(image: np.ndarray, camera: Camera, pattern_size: tuple[int, int
                                   flags=cv2.SOLVEPNP_ITERATIVE)
     if not ok:
         raise ChessboardNotFoundError("solvePnP failed")
-    Rcn, _ = cv2.Rodrigues(rvec)
-    return np.concatenate([-Rcn.T @ tvec.ravel(), rot2rpy(Rcn.T)]), corners        # rCNn, Θnc
+    return pose_from_board_extrinsics(rvec, tvec), corners
