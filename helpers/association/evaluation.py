@@ -32,15 +32,17 @@ from ..validation import float_array, function, integer, one_of
 from .common import Association, AssociationProblem, check_hypothesis, joint_sq_mahalanobis, prepare
 from .scenarios import range_bearing_scenario
 
-__all__ = ["run_trials", "TrialResults", "RATES", "wilson_interval", "sweep", "sweep_table", "check_results",
-           "true_hypothesis", "rates", "fmt_rate"]
+__all__ = ["run_trials", "trial_counts", "TrialResults", "RATES", "wilson_interval", "sweep", "sweep_table",
+           "check_results", "true_hypothesis", "rates", "fmt_rate"]
 
 #: numerator and denominator counts of each rate
 RATES = {"precision": ("tp", "n_pred"), "recall": ("tp", "n_true"), "accuracy": ("correct", "m")}
 
 
-def _counts(idx: np.ndarray, truth: np.ndarray, m: int) -> dict:
-    """The counts of one trial: tp, n_pred, n_true, correct (observations labelled right) and m."""
+def trial_counts(idx: np.ndarray, truth: np.ndarray, m: int) -> dict:
+    """The counts of one trial (module docstring): tp, n_pred, n_true, correct (observations labelled right) and m,
+    for the association ``idx`` and the ``truth`` (one entry per landmark: observation column or −1) with m
+    observations."""
     labels = np.full((2, m), -1)                        # row 0: the label idx gives each observation, row 1: truth's
     for row, hypothesis in enumerate((idx, truth)):
         k = np.flatnonzero(hypothesis >= 0)
@@ -137,7 +139,7 @@ def run_trials(algorithms: Mapping[str, Callable], n_trials: int, seed: int,
         sc = scenario(seed=(seed, t), **scenario_kwargs)
         for name, f in algorithms.items():
             a, best = _call(f, name, t, repeat, sc)
-            rows[name].append({**_counts(a.idx, sc.truth, sc.Y.shape[1]), "time": best,
+            rows[name].append({**trial_counts(a.idx, sc.truth, sc.Y.shape[1]), "time": best,
                                "nodes": int(a.stats.get("nodes", 0)), "exhausted": a.budget_exhausted,
                                "n_pairings": a.n_pairings})
     res = TrialResults(names=list(algorithms), n_trials=n_trials)

@@ -23,8 +23,8 @@ from ..validation import float_array, positive_number
 from .compatibility import uniform_surprisal
 from .snn import snn
 
-__all__ = ["DEMO_DETECTOR", "AssociationResult", "association_demo", "ground_truth_check", "plot_association",
-           "figure1_legend_handles", "FIGURE1_COLORS"]
+__all__ = ["DEMO_DETECTOR", "AssociationResult", "association_demo", "ground_truth_check", "verdicts",
+           "plot_association", "figure1_legend_handles", "FIGURE1_COLORS"]
 
 #: Detector settings of the workbook demo: Shi–Tomasi, the lab's cap of 10 000, 1 % quality level, a 5 × 5
 #: window; the response is smoothed (σ = 1 px) and non-maximum suppressed (7 × 7) so that one corner gives
@@ -96,14 +96,15 @@ def _console_lines(image_name, m, in_fov, idx_landmarks, idx, s, Y, surprisal_fo
 def association_demo(image: np.ndarray | None, camera: Camera, state: StateSLAM, image_name: str = "rendered scene",
                      features: Features | None = None, detector: dict | None = None, n_sigma: float = 3.0,
                      enforce_joint_compatibility: bool = False, verbose: bool = True,
-                     surprisal_format: str = ".6g") -> AssociationResult:
+                     surprisal_format: str = ".6g", noise: Gaussian | None = None) -> AssociationResult:
     """Run the lab's association demo on one image and (by default) print its console output.
 
     1. features = detect_features(image, **detector) (default :data:`DEMO_DETECTOR`), unless ``features`` is
        given; Y = features.Y.
     2. FOV pre-selection: landmark j is selected iff its **mean** position is within the camera's FOV at the
        state's mean camera pose (``Camera.is_world_within_fov``), in ascending j.
-    3. density = state.predict_feature_bundle_density(camera, selection) (no measurement noise).
+    3. density = state.predict_feature_bundle_density(camera, selection, noise) (the lab: no measurement noise;
+       ``noise`` a zero-mean size-2 Gaussian of every feature's pixel error).
     4. (idx, s) = snn(density, Y, s_U, n_sigma, enforce_joint_compatibility), s_U = log W + log H.
 
     With no landmark in view the selection is empty, the surprisal 0, and the output says so.
@@ -123,7 +124,7 @@ def association_demo(image: np.ndarray | None, camera: Camera, state: StateSLAM,
     sU = uniform_surprisal(camera.image_size)
     density, idx, s = None, np.zeros(0, dtype=np.intp), 0.0
     if idx_landmarks.size:
-        density = state.predict_feature_bundle_density(camera, idx_landmarks)
+        density = state.predict_feature_bundle_density(camera, idx_landmarks, noise=noise)
         idx, s = snn(density, Y, sU, n_sigma=n_sigma, enforce_joint_compatibility=enforce_joint_compatibility)
     lines = _console_lines(image_name, len(features), in_fov, idx_landmarks, idx, s, Y, surprisal_format)
     result = AssociationResult(features, in_fov, idx_landmarks, idx, float(s), density, sU, lines)
@@ -134,10 +135,21 @@ def association_demo(image: np.ndarray | None, camera: Camera, state: StateSLAM,
 
 def ground_truth_check(result: AssociationResult, camera: Camera, true_pose: ArrayLike, true_landmarks: ArrayLike,
                        tol: float = 2.0) -> list[dict]:
-    """Compare the association with the truth the renderer knows.
+    """Compare the association with the truth the renderer knows: the true pixel of landmark j is
+    t_j = world_to_pixel(true_landmarks[:, j], true_pose); :func:`verdicts` does the rest."""
+    if not isinstance(result, AssociationResult):
+        raise ValueError(f"result must be an AssociationResult (association_demo), got {type(result).__name__}")
+    true_landmarks = float_array(true_landmarks, "true_landmarks")
+    if true_landmarks.shape != (3, result.in_fov.size):
+        raise ValueError(f"true_landmarks must have shape (3, {result.in_fov.size}) (one column per landmark of the "
+                         f"state), got {true_landmarks.shape}")
+    return verdicts(result, camera.world_to_pixel(true_landmarks, true_pose), tol)
 
-    For every selected landmark j: its true pixel t_j = world_to_pixel(true_landmarks[:, j], true_pose), the
-    detected feature nearest to t_j (index and distance), and a verdict:
+
+def verdicts(result: AssociationResult, true_pixels: ArrayLike, tol: float = 2.0) -> list[dict]:
+    """Score the association against each landmark's true pixel t_j (``true_pixels`` (2, n_L), one column per
+    landmark of the state). For every selected landmark j: the detected feature nearest to t_j (index and
+    distance), and a verdict:
 
       "correct"       associated with the nearest feature, which lies within ``tol`` px of t_j;
       "correct null"  unassociated, and no feature lies within ``tol`` px of t_j (the detector found nothing);
@@ -148,15 +160,15 @@ def ground_truth_check(result: AssociationResult, camera: Camera, true_pose: Arr
     """
     if not isinstance(result, AssociationResult):
         raise ValueError(f"result must be an AssociationResult (association_demo), got {type(result).__name__}")
-    true_landmarks = float_array(true_landmarks, "true_landmarks")
-    if true_landmarks.shape != (3, result.in_fov.size):
-        raise ValueError(f"true_landmarks must have shape (3, {result.in_fov.size}) (one column per landmark of the "
-                         f"state), got {true_landmarks.shape}")
+    true_pixels = float_array(true_pixels, "true_pixels")
+    if true_pixels.shape != (2, result.in_fov.size) or not np.all(np.isfinite(true_pixels)):
+        raise ValueError(f"true_pixels must be a finite (2, {result.in_fov.size}) array (one column per landmark of "
+                         f"the state), got shape {true_pixels.shape}")
     tol = positive_number(tol, "tol")
     Y = result.features.Y
     rows = []
     for j, i in zip(result.idx_landmarks, result.idx):
-        t = camera.world_to_pixel(true_landmarks[:, j], true_pose)
+        t = true_pixels[:, j]
         d = np.hypot(Y[0] - t[0], Y[1] - t[1])
         nearest, dist = (int(np.argmin(d)), float(np.min(d))) if d.size else (-1, np.inf)
         if i >= 0:
