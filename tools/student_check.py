@@ -74,7 +74,7 @@ def notebook_job(edition, tmp, names, notebooks):
                     + ["notebooks/%s.ipynb" % n for n in notebooks], timeout=1800)
     shutil.rmtree(tree, ignore_errors=True)
     solved = "only %s solved" % ", ".join(sorted(names)) if names else "no exercise solved"
-    label = "notebooks %s run with %s" % (", ".join(n[:2] for n in notebooks), solved)
+    label = "notebooks %s run with %s" % (", ".join(n.split("_")[0] for n in notebooks), solved)
     return label, code == 0, out
 
 

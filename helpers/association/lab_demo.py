@@ -221,8 +221,8 @@ def _draw_landmark(ax, dens, j, colour, image_size, n_sigma) -> None:
     ax.plot(Ex, Ey, "-", color=colour, linewidth=1.6, zorder=4, path_effects=_halo(3.2))
     mu = dens.mean
     ax.plot(mu[0], mu[1], "+", color=colour, markersize=12, markeredgewidth=1.8, zorder=5, path_effects=_halo())
-    ax.text(mu[0] + 20, mu[1] - 20, str(j), color=colour, fontsize=11, fontweight="bold", clip_on=True, zorder=7,
-            path_effects=_halo(2.5))
+    ax.annotate(str(j), (mu[0], mu[1]), xytext=(5, 4), textcoords="offset points", color=colour, fontsize=11,
+                fontweight="bold", annotation_clip=True, zorder=7, path_effects=_halo(2.5))   # beside the '+
 
 
 def _draw_truth(ax, rows, Y) -> None:
@@ -255,7 +255,7 @@ def figure1_legend_handles(truth: bool = False) -> list[Line2D]:
     if truth:
         handles += [
             Line2D([], [], ls="none", marker="o", mfc="none", mec=c["truth"], markersize=9, mew=1.6,
-                   label="true landmark pixel (renderer)"),
+                   label="true landmark pixel"),
             Line2D([], [], ls="--", color=c["wrong"], lw=2.0, label="wrong pairing: chosen feature → truth"),
         ]
     return handles
