@@ -49,8 +49,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"[{k}/{len(paths)}] {_shown(path)} ...", end=" ", flush=True)
         start = time.perf_counter()
         nb = nbformat.read(path, as_version=4)
+        # store_widget_state=False: the widget models of an exploration (random ids) stay out of the notebook's
+        # metadata; an opened notebook shows the knobs' text and the stored figure until it is run
         client = NotebookClient(nb, timeout=args.timeout, kernel_name="python3", extra_arguments=KERNEL_ARGUMENTS,
-                                resources={"metadata": {"path": str(path.parent)}})
+                                resources={"metadata": {"path": str(path.parent)}}, store_widget_state=False)
         client.execute()
         target = path if args.inplace else ((ROOT / args.output_dir).resolve() / path.name)
         target.parent.mkdir(parents=True, exist_ok=True)

@@ -26,7 +26,8 @@ marked ``cpu_independent``, whose results these settings cannot reach, are left 
 In the student edition (a tree with EXERCISES.md, written by ``make student``) ``test`` runs the grader, which
 fails only when a test outside the exercises fails, then nbval in lax mode over the notebooks whose exercises
 all pass; in the answer key, with ``CI=true``, ``test`` ends with the student-edition check
-(``tools/student_check.py``).
+(``tools/student_check.py``) and the browser check of an exploration notebook (``tools/browser_check.py``: Debian's
+Chromium and Playwright are installed for it under ``CI=true`` only).
 The unit tests and the notebook passes run on one pytest-xdist worker per core (at most 4; ``WORKBOOK_JOBS=N``
 sets the number, 1 runs them in one process).
 This file keeps to syntax that old Pythons can parse, so that they reach the version check.
@@ -305,6 +306,12 @@ def test():
     test_notebooks()
     if in_ci() and not STUDENT_EDITION:
         run([venv_python(), "tools/student_check.py"], env=tool_env())
+        run([venv_python(), "tools/browser_check.py", BROWSER_CHECK_NOTEBOOK, "--artifacts", "build/browser-check"],
+            env=tool_env())
+
+
+#: the exploration notebook that ``CI=true make test`` opens in headless Chromium (tools/browser_check.py)
+BROWSER_CHECK_NOTEBOOK = "notebooks/05_snn_demo.ipynb"
 
 
 def student_notebooks():
