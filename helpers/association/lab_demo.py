@@ -211,31 +211,47 @@ def _halo(width: float = 3.0) -> list:
     return [pe.withStroke(linewidth=width, foreground="white")]
 
 
-def _draw_landmark(ax, dens, j, colour, image_size, n_sigma) -> None:
-    """'+' at the predicted mean, the n_σ ellipse (segments with both ends inside the image) and the label."""
+def _ellipse_path(dens, image_size, n_sigma) -> np.ndarray:
+    """The n_σ ellipse (2, 101) with NaN where a segment leaves the image, and a NaN column to end it."""
     W, H = image_size
     E = dens.confidence_ellipse(n_sigma, 100)
     inside = (E[0] >= -0.5) & (E[0] <= W - 0.5) & (E[1] >= -0.5) & (E[1] <= H - 0.5)
-    Ex, Ey = E[0].copy(), E[1].copy()
-    Ex[1:][~(inside[:-1] & inside[1:])] = np.nan           # break the curve where a segment leaves the image
-    ax.plot(Ex, Ey, "-", color=colour, linewidth=1.6, zorder=4, path_effects=_halo(3.2))
-    mu = dens.mean
-    ax.plot(mu[0], mu[1], "+", color=colour, markersize=12, markeredgewidth=1.8, zorder=5, path_effects=_halo())
-    ax.annotate(str(j), (mu[0], mu[1]), xytext=(5, 4), textcoords="offset points", color=colour, fontsize=11,
-                fontweight="bold", annotation_clip=True, zorder=7, path_effects=_halo(2.5))   # beside the '+
+    E = E.copy()
+    E[:, 1:][:, ~(inside[:-1] & inside[1:])] = np.nan      # break the curve where a segment leaves the image
+    return np.hstack([E, np.full((2, 1), np.nan)])
+
+
+def _draw_landmarks(ax, result, image_size, n_sigma) -> None:
+    """Per selected landmark: '+' at the predicted mean, the n_σ ellipse and the label j, blue if associated and
+    bright red if not (one line per colour for the ellipses and one for the '+', so many landmarks draw fast)."""
+    for associated in (True, False):
+        colour = FIGURE1_COLORS["associated" if associated else "unassociated"]
+        ks = [k for k, i in enumerate(result.idx) if (i >= 0) == associated]
+        if not ks:
+            continue
+        dens = [result.landmark_density(k) for k in ks]
+        E = np.hstack([_ellipse_path(d, image_size, n_sigma) for d in dens])
+        mu = np.array([d.mean for d in dens]).T
+        ax.plot(E[0], E[1], "-", color=colour, linewidth=1.6, zorder=4, path_effects=_halo(3.2))
+        ax.plot(mu[0], mu[1], "+", color=colour, markersize=12, markeredgewidth=1.8, linestyle="none", zorder=5,
+                path_effects=_halo())
+        for k, (x, y) in zip(ks, mu.T):
+            ax.annotate(str(result.idx_landmarks[k]), (x, y), xytext=(5, 4), textcoords="offset points",
+                        color=colour, fontsize=11, fontweight="bold", annotation_clip=True, zorder=7,
+                        path_effects=_halo(2.5))      # beside the '+'
 
 
 def _draw_truth(ax, rows, Y) -> None:
     """True landmark pixels (hollow circles) and, for each wrong pairing, a dashed line from the chosen feature
-    to the truth."""
-    for r in rows:
-        t = np.asarray(r["true_pixel"], dtype=float)
-        ax.plot(t[0], t[1], "o", mfc="none", mec=FIGURE1_COLORS["truth"], markersize=9, markeredgewidth=1.6,
-                zorder=6, path_effects=_halo())
-        if r["verdict"] == "wrong" and r["associated"] >= 0:
-            y = Y[:, r["associated"]]
-            ax.plot([y[0], t[0]], [y[1], t[1]], "--", color=FIGURE1_COLORS["wrong"], linewidth=2.0, zorder=6,
-                    path_effects=_halo())
+    to the truth (one line each)."""
+    t = np.array([np.asarray(r["true_pixel"], dtype=float) for r in rows]).reshape(-1, 2).T
+    ax.plot(t[0], t[1], "o", mfc="none", mec=FIGURE1_COLORS["truth"], markersize=9, markeredgewidth=1.6,
+            linestyle="none", zorder=6, path_effects=_halo())
+    wrong = [(Y[:, r["associated"]], np.asarray(r["true_pixel"], dtype=float)) for r in rows
+             if r["verdict"] == "wrong" and r["associated"] >= 0]
+    if wrong:
+        seg = np.hstack([np.column_stack([y, t, [np.nan, np.nan]]) for y, t in wrong])
+        ax.plot(seg[0], seg[1], "--", color=FIGURE1_COLORS["wrong"], linewidth=2.0, zorder=6, path_effects=_halo())
 
 
 def figure1_legend_handles(truth: bool = False) -> list[Line2D]:
@@ -292,12 +308,10 @@ def plot_association(image: np.ndarray, result: AssociationResult, ax: Axes | No
     zoom = window is not None
     ax.plot(Y[0, vis], Y[1, vis], ".", color=FIGURE1_COLORS["feature"], markersize=4.5 if zoom else 2.8,
             alpha=0.9, markeredgewidth=0, linestyle="none", zorder=1)
-    for k, (j, i) in enumerate(zip(result.idx_landmarks, result.idx)):
-        colour = FIGURE1_COLORS["associated" if i >= 0 else "unassociated"]
-        _draw_landmark(ax, result.landmark_density(k), j, colour, (image.shape[1], image.shape[0]), n_sigma)
-        if i >= 0:
-            ax.plot(Y[0, i], Y[1, i], "x", color=FIGURE1_COLORS["match"], markersize=11, markeredgewidth=2.0,
-                    zorder=5, path_effects=_halo())
+    _draw_landmarks(ax, result, (image.shape[1], image.shape[0]), n_sigma)
+    matched = result.idx[result.idx >= 0]
+    ax.plot(Y[0, matched], Y[1, matched], "x", color=FIGURE1_COLORS["match"], markersize=11, markeredgewidth=2.0,
+            linestyle="none", zorder=5, path_effects=_halo())
     if truth is not None:
         _draw_truth(ax, truth, Y)
     ax.set_xlim(x0, x1)
