@@ -92,6 +92,10 @@ def notebook_sets(reg: dict, edition: pathlib.Path) -> dict:
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    unknown = [a for a in argv if a.startswith("-") and a not in ("--keep", "--jobs", "--no-notebooks")]
+    if unknown or "--keep" in argv[-1:] or "--jobs" in argv[-1:]:
+        print(__doc__.strip().splitlines()[2].strip())      # the usage line (-h, --help and unknown options)
+        return 0 if unknown in (["-h"], ["--help"]) else 2
     keep = pathlib.Path(argv[argv.index("--keep") + 1]) if "--keep" in argv else None
     jobs = int(argv[argv.index("--jobs") + 1]) if "--jobs" in argv else 2
     start = time.perf_counter()
