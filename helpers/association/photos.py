@@ -30,7 +30,7 @@ from ..features import Features, detect_features
 from ..gaussian import Gaussian
 from ..state_slam import StateSLAM
 from ..validation import integer, nonnegative_number, positive_number, rng_seed
-from .evaluation import TrialResults, trial_counts
+from .evaluation import TrialResults, _check_algorithms, trial_counts
 from .lab_demo import DEMO_DETECTOR
 
 __all__ = ["PhotoPrior", "Photo", "PhotoTrial", "PhotoEvaluation", "prepare_photos", "photo_trial", "evaluate_photos",
@@ -170,8 +170,7 @@ def evaluate_photos(algorithms: Mapping[str, Callable], photos: list[Photo], cam
                     prior: PhotoPrior, n_draws: int, seed: int, error_scale: float = 1.0) -> PhotoEvaluation:
     """Run every algorithm {name: f(density, Y) → Association} on ``n_draws`` draws per photograph
     (:func:`photo_trial`; photograph i, draw t uses the seed (seed, i, t))."""
-    if not isinstance(algorithms, Mapping) or not algorithms or not all(map(callable, algorithms.values())):
-        raise ValueError(f"algorithms must be a non-empty mapping {{name: callable}}, got {algorithms!r}")
+    _check_algorithms(algorithms)
     if not isinstance(photos, list) or not photos or not all(isinstance(p, Photo) for p in photos):
         raise ValueError("photos must be a non-empty list of Photo (prepare_photos)")
     if len({p.name for p in photos}) != len(photos):

@@ -17,7 +17,7 @@ a landmark is seen again after at least ``min_gap`` ticks out of view. The knobs
 
 χ²'s band is the central interval of χ²_dof holding probability 2Φ(4) − 1 (the 4σ band of notebook 16), with
 dof = Σ edge dimensions − free state dimensions (notebook 09; 0 with odometry alone: nothing is redundant).
-Cost: one run per (sensors, noise) at its first use (``run_question`` up to tick c, about 1.5 s), cached; a redraw
+Cost: one run per (sensors, noise) at its first use (``run_question`` up to tick c), cached; a redraw
 only draws. :meth:`LoopClosureExplorer.from_runs` adopts a notebook's own before/after runs as their entry.
 """
 from __future__ import annotations
